@@ -1,0 +1,83 @@
+"""Taichi backend selection: ``cpu`` | ``cuda`` | ``auto``, one ``ti.init`` per process.
+
+``auto`` picks CUDA only when the driver library loads and reports a device;
+the probe goes through ``ctypes`` because ``ti.init(arch=ti.gpu)`` segfaults on a
+machine without a GPU (it probes OpenGL first), see docs in apis.md section 4.1.
+Worlds created later in the same process share the runtime; asking for a
+different arch after the first init is an error rather than a silent reset
+that would destroy every live world's fields.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+
+from .errors import SandboxError
+
+ARCHES = ("cpu", "cuda", "auto")
+_active: str | None = None
+
+
+def cuda_available() -> bool:
+    """True when libcuda loads and reports at least one device."""
+    for name in ("libcuda.so.1", "libcuda.so"):
+        try:
+            lib = ctypes.CDLL(name)
+        except OSError:
+            continue
+        try:
+            if lib.cuInit(0) != 0:
+                return False
+            count = ctypes.c_int(0)
+            return lib.cuDeviceGetCount(ctypes.byref(count)) == 0 and count.value > 0
+        except AttributeError:
+            return False
+    return False
+
+
+def resolve_arch(arch: str) -> str:
+    if arch not in ARCHES:
+        raise SandboxError(f"unknown arch {arch!r}; choose one of {', '.join(ARCHES)}")
+    if arch == "auto":
+        return "cuda" if cuda_available() else "cpu"
+    if arch == "cuda" and not cuda_available():
+        raise SandboxError("arch 'cuda' asked for, but no CUDA device was found; use --arch cpu or auto")
+    return arch
+
+
+def init(arch: str = "auto") -> str:
+    """Initialise Taichi once for this process and return the arch in use."""
+    global _active
+    wanted = resolve_arch(arch)
+    if _active is not None:
+        if wanted != _active and arch != "auto":
+            raise SandboxError(
+                f"Taichi is already running on {_active} in this process; cannot switch to {wanted}"
+            )
+        return _active
+    os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
+    import taichi as ti
+
+    ti.init(
+        arch=ti.cuda if wanted == "cuda" else ti.cpu,
+        default_fp=ti.f32,
+        log_level=ti.WARN,
+        enable_fallback=False,
+        random_seed=0,
+        # fast_math reorders float operations differently per kernel; keep IEEE
+        # semantics so CPU runs are bitwise repeatable and NaN checks are reliable.
+        fast_math=False,
+    )
+    _active = wanted
+    return wanted
+
+
+def active_arch() -> str | None:
+    return _active
+
+
+def sync() -> None:
+    import taichi as ti
+
+    ti.sync()

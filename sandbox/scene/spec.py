@@ -1,0 +1,105 @@
+"""The validated, fully expanded description of a scene: plain Python and numpy.
+
+The loader (``scene.loader``) turns a TOML file or a dict into a ``Scene``; the
+world (``world.World``) turns a ``Scene`` into Taichi fields. Nothing here
+imports Taichi, so scenes can be built, checked and edited without a runtime.
+
+Frames and units: world z-up, SI units, quaternions (w, x, y, z). A body's
+``position`` is its centre of mass and its ``orientation`` the orientation of its
+body frame; each shape sits in the body frame at ``local_position`` /
+``local_orientation``. For a single box, sphere or capsule the body frame is the
+shape frame; for hulls and compounds the loader shifts shapes so the body origin
+is the centre of mass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+def _vec(x, n=3) -> np.ndarray:
+    return np.asarray(x, dtype=np.float64).reshape(n)
+
+
+@dataclass
+class ShapeSpec:
+    kind: str  # "sphere" | "capsule" | "box" | "hull"
+    radius: float = 0.0  # sphere, capsule [m]
+    half_height: float = 0.0  # capsule: half length of the core segment along local z [m]
+    half_extents: np.ndarray | None = None  # box (3,) [m]
+    vertices: np.ndarray | None = None  # hull (V, 3) in the shape frame [m]
+    local_position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    local_orientation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+
+
+@dataclass
+class BodySpec:
+    shapes: list[ShapeSpec]
+    position: np.ndarray  # (3,) centre of mass, world [m]
+    orientation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    linear_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))  # [m/s]
+    angular_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))  # world frame [rad/s]
+    mass: float = 1.0  # [kg]; ignored when static
+    inertia: np.ndarray = field(default_factory=lambda: np.eye(3))  # (3,3) body frame, about the COM [kg m^2]
+    static: bool = False
+    friction: float = 0.5
+    restitution: float = 0.0
+    name: str | None = None
+
+
+@dataclass
+class PlaneSpec:
+    normal: np.ndarray  # (3,) unit; the solid half-space is normal . x <= offset
+    offset: float = 0.0
+    friction: float = 0.5
+    restitution: float = 0.0
+
+
+@dataclass
+class MeshSpec:
+    """A static non-convex triangle mesh (a file or a generated height field), world frame."""
+
+    vertices: np.ndarray  # (V, 3) [m]
+    triangles: np.ndarray  # (T, 3) int vertex indices, counter-clockwise seen from the solid's outside
+    friction: float = 0.5
+    restitution: float = 0.0
+    name: str | None = None
+
+
+@dataclass
+class WorldSpec:
+    gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -9.81]))  # [m/s^2]
+    dt: float = 1.0 / 60.0  # [s] time step
+    substeps: int = 1  # the whole collide-solve-integrate step runs this many times per step
+
+
+@dataclass
+class SolverSpec:
+    name: str = "pgs"
+    iterations: int = 10
+    options: dict = field(default_factory=dict)
+
+
+@dataclass
+class Scene:
+    source: str  # file path, or "<dict>"
+    world: WorldSpec = field(default_factory=WorldSpec)
+    solver: SolverSpec = field(default_factory=SolverSpec)
+    bodies: list[BodySpec] = field(default_factory=list)
+    planes: list[PlaneSpec] = field(default_factory=list)
+    meshes: list[MeshSpec] = field(default_factory=list)
+    description: str = ""
+
+    @classmethod
+    def load(cls, path) -> "Scene":
+        from .loader import load_scene
+
+        return load_scene(path)
+
+    @classmethod
+    def from_dict(cls, data: dict, *, source: str = "<dict>", base_dir=None) -> "Scene":
+        from .loader import scene_from_dict
+
+        return scene_from_dict(data, source=source, base_dir=base_dir)

@@ -1,0 +1,62 @@
+"""Every tunable of the contact pipeline, with its unit, default and consequence.
+
+No slop, margin or bias factor is written as a literal inside a kernel: kernels
+read these values from the ``Settings`` instance a world was built with
+(house rule 7, after Jolt's ``PhysicsSettings.h``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+
+@dataclass(frozen=True)
+class Settings:
+    contact_margin: float = 0.02
+    """[m] Speculative distance: shape pairs closer than this produce contacts.
+    Larger keeps resting contacts from flickering and catches faster bodies
+    (speculative CCD); too large adds contacts that carry no load but still
+    count in the mass-splitting divisor n_b. Per pair it is capped at a quarter
+    of the smaller shape's bounding radius so millimetre bodies stay sane."""
+
+    slop: float = 0.005
+    """[m] Penetration tolerated without position correction. Lower tightens
+    resting overlap but makes stacks buzz; higher lets bodies sink visibly."""
+
+    baumgarte: float = 0.2
+    """[1] Fraction of the penetration (beyond slop) removed per step through
+    the velocity bias (Baumgarte). Higher recovers overlap faster but injects
+    kinetic energy (bodies pop apart); 0.1-0.3 is the usual range."""
+
+    max_push_speed: float = 3.0
+    """[m/s] Cap on the separation speed the position bias may request, so a
+    deep initial overlap separates without an explosion (Box2D v3 uses 3 m/s)."""
+
+    restitution_threshold: float = 1.0
+    """[m/s] Approach speed below which restitution is ignored, so resting
+    contacts do not bounce forever."""
+
+    warm_start: float = 1.0
+    """[1] Fraction of last step's matched impulses applied before iterating.
+    1 makes resting piles stiff across frames; 0 disables warm starting."""
+
+    match_distance: float = 0.05
+    """[m] A new contact point inherits the impulse of an old point of the same
+    shape pair with the same feature id, or else of the nearest old point within
+    this distance (clipping may rotate feature ids between frames)."""
+
+    jacobi_relaxation: float = 0.25
+    """[1] Relaxation factor omega of projected Jacobi. Plain Jacobi (1.0)
+    overshoots by the number of rows coupled through a body; stacks need
+    omega ~ 1/n to survive, which makes them soft and slow to converge."""
+
+    def replace(self, **changes) -> "Settings":
+        known = {f.name for f in fields(self)}
+        unknown = set(changes) - known
+        if unknown:
+            from .errors import SandboxError
+
+            raise SandboxError(f"unknown setting(s): {', '.join(sorted(unknown))}; known: {', '.join(sorted(known))}")
+        values = {f.name: getattr(self, f.name) for f in fields(self)}
+        values.update(changes)
+        return Settings(**values)

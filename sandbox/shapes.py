@@ -1,0 +1,234 @@
+"""Collision shapes: kinds, convex polytopes (boxes, hulls, mesh triangles) and their pools.
+
+Every convex piece is one of two families, which keeps the narrowphase small:
+
+* *rounded cores*: a sphere is a point with a radius, a capsule a segment (along
+  its local z axis, half length ``half_height``) with a radius;
+* *polytopes*: boxes, convex hulls and static mesh triangles share one vertex /
+  face / edge pool, so box-box, box-hull, hull-hull and anything-triangle all run
+  the same SAT-and-clip code (Gregorius, "The Separating Axis Test between Convex
+  Polyhedra", GDC 2013). Faces are merged coplanar polygons, not triangles, so a
+  box face is one quad and face-face manifolds come out as 4 stable points.
+
+A triangle is a polytope with two faces (front, back) and three edges; the
+narrowphase treats it one-sided (only its front normal pushes).
+
+Compound bodies are simply several shapes pointing at one body (``shape_body``),
+each with a pose relative to the body's centre of mass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+PLANE, SPHERE, CAPSULE, BOX, HULL, TRIANGLE = 0, 1, 2, 3, 4, 5
+KIND_NAMES = {PLANE: "plane", SPHERE: "sphere", CAPSULE: "capsule", BOX: "box", HULL: "hull", TRIANGLE: "triangle"}
+POLYTOPE_KINDS = (BOX, HULL, TRIANGLE)
+MAX_POLY_VERTS = 64
+"""Largest hull the narrowphase accepts (it keeps one hull in registers/local memory)."""
+
+
+class GeometryError(ValueError):
+    """Raised by the builders below; the scene loader re-raises it as a SceneError with its entry."""
+
+
+@dataclass
+class Polytope:
+    """A convex polytope in its local frame (float64, built on the host once)."""
+
+    vertices: np.ndarray  # (V, 3)
+    face_normals: np.ndarray  # (F, 3) outward unit normals
+    face_offsets: np.ndarray  # (F,) plane: n . x = offset
+    face_loops: list  # F arrays of vertex indices, counter-clockwise seen from outside
+    edges: np.ndarray  # (E, 2) vertex indices
+    edge_faces: np.ndarray  # (E, 2) the two faces sharing the edge
+
+    @property
+    def centroid(self) -> np.ndarray:
+        return self.vertices.mean(axis=0)
+
+
+def _edges_from_loops(loops) -> tuple[np.ndarray, np.ndarray]:
+    owner: dict[tuple[int, int], list[int]] = {}
+    for f, loop in enumerate(loops):
+        for i in range(len(loop)):
+            a, b = int(loop[i]), int(loop[(i + 1) % len(loop)])
+            owner.setdefault((min(a, b), max(a, b)), []).append(f)
+    edges, faces = [], []
+    for key in sorted(owner):
+        fs = owner[key]
+        if len(fs) != 2:
+            raise GeometryError("polytope is not closed (an edge does not have exactly two faces)")
+        edges.append(key)
+        faces.append(fs)
+    return np.asarray(edges, dtype=np.int64), np.asarray(faces, dtype=np.int64)
+
+
+def box_polytope(half_extents) -> Polytope:
+    h = np.asarray(half_extents, dtype=np.float64)
+    if h.shape != (3,) or not np.all(np.isfinite(h)) or np.any(h <= 0):
+        raise GeometryError(f"box half_extents must be three finite numbers > 0, got {half_extents!r}")
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
+    verts = signs * h
+    # vertex index = 4*(x>0) + 2*(y>0) + (z>0); loops counter-clockwise from outside
+    loops = [
+        np.array([0, 1, 3, 2]),  # -x
+        np.array([4, 6, 7, 5]),  # +x
+        np.array([0, 4, 5, 1]),  # -y
+        np.array([2, 3, 7, 6]),  # +y
+        np.array([0, 2, 6, 4]),  # -z
+        np.array([1, 5, 7, 3]),  # +z
+    ]
+    normals = np.array([[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1]], dtype=np.float64)
+    offsets = np.array([h[0], h[0], h[1], h[1], h[2], h[2]])
+    edges, edge_faces = _edges_from_loops(loops)
+    return Polytope(verts, normals, offsets, loops, edges, edge_faces)
+
+
+def hull_polytope(points, *, coplanar_tol: float = 1e-6) -> Polytope:
+    """Convex hull of ``points`` with coplanar triangles merged into polygon faces."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    pts = np.asarray(points, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 4:
+        raise GeometryError(f"a hull needs at least 4 points of 3 coordinates, got shape {pts.shape}")
+    if not np.all(np.isfinite(pts)):
+        raise GeometryError("hull vertices contain NaN or inf")
+    scale = float(np.ptp(pts, axis=0).max())
+    if scale <= 0:
+        raise GeometryError("hull is degenerate (all points coincide)")
+    try:
+        hull = ConvexHull(pts)
+    except QhullError as exc:
+        raise GeometryError(f"hull is degenerate (flat or collinear points): {str(exc).splitlines()[0]}") from None
+    if hull.volume <= 1e-9 * scale**3:
+        raise GeometryError("hull is degenerate (zero volume)")
+    used = np.unique(hull.simplices)
+    if len(used) > MAX_POLY_VERTS:
+        raise GeometryError(
+            f"hull has {len(used)} vertices; at most {MAX_POLY_VERTS} are supported (simplify or decimate the mesh)"
+        )
+    remap = -np.ones(len(pts), dtype=np.int64)
+    remap[used] = np.arange(len(used))
+    verts = pts[used]
+    # group hull triangles by plane
+    groups: list[tuple[np.ndarray, float, list[int]]] = []
+    for tri, eq in zip(hull.simplices, hull.equations):
+        n, d = eq[:3], -eq[3]
+        for gn, gd, members in groups:
+            if np.dot(gn, n) > 1 - coplanar_tol and abs(gd - d) < coplanar_tol * scale * 10:
+                members.extend(int(v) for v in tri)
+                break
+        else:
+            groups.append((n, d, [int(v) for v in tri]))
+    normals, offsets, loops = [], [], []
+    for n, _, members in groups:
+        idx = np.unique(remap[np.asarray(members)])
+        p = verts[idx]
+        c = p.mean(axis=0)
+        u = p[0] - c
+        u /= np.linalg.norm(u)
+        w = np.cross(n, u)
+        ang = np.arctan2((p - c) @ w, (p - c) @ u)
+        loop = idx[np.argsort(ang)]
+        normals.append(n / np.linalg.norm(n))
+        offsets.append(float(np.mean(verts[loop] @ normals[-1])))
+        loops.append(loop)
+    edges, edge_faces = _edges_from_loops(loops)
+    if len(verts) - len(edges) + len(loops) != 2:
+        raise GeometryError("hull topology is inconsistent (Euler characteristic != 2); points may be nearly coplanar")
+    return Polytope(verts, np.asarray(normals), np.asarray(offsets), loops, edges, edge_faces)
+
+
+def triangle_polytope(a, b, c) -> Polytope:
+    v = np.asarray([a, b, c], dtype=np.float64)
+    n = np.cross(v[1] - v[0], v[2] - v[0])
+    area2 = np.linalg.norm(n)
+    if not np.isfinite(area2) or area2 <= 1e-12 * max(1.0, float(np.ptp(v, axis=0).max()) ** 2):
+        raise GeometryError("degenerate triangle (zero area)")
+    n /= area2
+    loops = [np.array([0, 1, 2]), np.array([0, 2, 1])]
+    normals = np.array([n, -n])
+    offsets = np.array([v[0] @ n, -(v[0] @ n)])
+    edges = np.array([[0, 1], [1, 2], [0, 2]])
+    edge_faces = np.array([[0, 1], [0, 1], [0, 1]])
+    return Polytope(v, normals, offsets, loops, edges, edge_faces)
+
+
+@ti.data_oriented
+class PolytopePool:
+    """All polytopes of a world in flat Taichi fields (structure of arrays).
+
+    Indices stored in loops and edges are *global* (into ``vert`` / ``face_*``),
+    so a kernel needs only the polytope id to walk one polytope.
+    """
+
+    def __init__(self, polytopes: list[Polytope]):
+        n = max(1, len(polytopes))
+        nv = max(1, sum(len(p.vertices) for p in polytopes))
+        nf = max(1, sum(len(p.face_loops) for p in polytopes))
+        nl = max(1, sum(sum(len(l) for l in p.face_loops) for p in polytopes))
+        ne = max(1, sum(len(p.edges) for p in polytopes))
+        self.count = len(polytopes)
+        self.vert_start = ti.field(ti.i32, n)
+        self.vert_count = ti.field(ti.i32, n)
+        self.face_start = ti.field(ti.i32, n)
+        self.face_count = ti.field(ti.i32, n)
+        self.edge_start = ti.field(ti.i32, n)
+        self.edge_count = ti.field(ti.i32, n)
+        self.centroid = ti.Vector.field(3, ti.f32, n)
+        self.vert = ti.Vector.field(3, ti.f32, nv)
+        self.face_normal = ti.Vector.field(3, ti.f32, nf)
+        self.face_offset = ti.field(ti.f32, nf)
+        self.face_loop_start = ti.field(ti.i32, nf)
+        self.face_loop_count = ti.field(ti.i32, nf)
+        self.loop = ti.field(ti.i32, nl)
+        self.edge_vert = ti.Vector.field(2, ti.i32, ne)
+        self.edge_face = ti.Vector.field(2, ti.i32, ne)
+        if not polytopes:
+            return
+        vs, fs, ls, es = 0, 0, 0, 0
+        starts = np.zeros((len(polytopes), 6), dtype=np.int32)
+        verts, fn, fo, fls, flc, loops, ev, ef, cen = [], [], [], [], [], [], [], [], []
+        for i, p in enumerate(polytopes):
+            starts[i] = (vs, len(p.vertices), fs, len(p.face_loops), es, len(p.edges))
+            verts.append(p.vertices)
+            cen.append(p.centroid)
+            fn.append(p.face_normals)
+            fo.append(p.face_offsets)
+            for loop in p.face_loops:
+                fls.append(ls)
+                flc.append(len(loop))
+                loops.append(np.asarray(loop) + vs)
+                ls += len(loop)
+            ev.append(p.edges + vs)
+            ef.append(p.edge_faces + fs)
+            vs += len(p.vertices)
+            fs += len(p.face_loops)
+            es += len(p.edges)
+        self.vert_start.from_numpy(_pad(starts[:, 0], n))
+        self.vert_count.from_numpy(_pad(starts[:, 1], n))
+        self.face_start.from_numpy(_pad(starts[:, 2], n))
+        self.face_count.from_numpy(_pad(starts[:, 3], n))
+        self.edge_start.from_numpy(_pad(starts[:, 4], n))
+        self.edge_count.from_numpy(_pad(starts[:, 5], n))
+        self.centroid.from_numpy(_pad(np.asarray(cen, np.float32), n))
+        self.vert.from_numpy(np.concatenate(verts).astype(np.float32))
+        self.face_normal.from_numpy(np.concatenate(fn).astype(np.float32))
+        self.face_offset.from_numpy(np.concatenate(fo).astype(np.float32))
+        self.face_loop_start.from_numpy(np.asarray(fls, np.int32))
+        self.face_loop_count.from_numpy(np.asarray(flc, np.int32))
+        self.loop.from_numpy(np.concatenate(loops).astype(np.int32))
+        self.edge_vert.from_numpy(np.concatenate(ev).astype(np.int32))
+        self.edge_face.from_numpy(np.concatenate(ef).astype(np.int32))
+
+
+def _pad(a: np.ndarray, n: int) -> np.ndarray:
+    if len(a) >= n:
+        return np.ascontiguousarray(a)
+    out = np.zeros((n,) + a.shape[1:], dtype=a.dtype)
+    out[: len(a)] = a
+    return out
