@@ -1,6 +1,5 @@
 """Quaternion (w, x, y, z) and small 3x3 helpers for Taichi kernels, nothing else."""
 
-from __future__ import annotations
 
 import taichi as ti
 

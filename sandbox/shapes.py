@@ -17,7 +17,6 @@ Compound bodies are simply several shapes pointing at one body (``shape_body``),
 each with a pose relative to the body's centre of mass.
 """
 
-from __future__ import annotations
 
 from dataclasses import dataclass
 
@@ -232,3 +231,60 @@ def _pad(a: np.ndarray, n: int) -> np.ndarray:
     out = np.zeros((n,) + a.shape[1:], dtype=a.dtype)
     out[: len(a)] = a
     return out
+
+
+@ti.data_oriented
+class ShapeTable:
+    """Per-shape parameters: which body, where on it, what kind, what material.
+
+    ``local_aabb_center/half`` bound the shape in its own frame; the broadphase
+    turns them into a world AABB with one rotation (|R| h), exact for boxes.
+    Static shapes (mesh triangles, static bodies) are listed in ``static_ids``
+    and sit in a grid built once; dynamic ones in ``dynamic_ids``.
+    """
+
+    def __init__(self, capacity: int, plane_capacity: int):
+        c = max(1, capacity)
+        self.capacity = c
+        self.count = ti.field(ti.i32, ())
+        self.kind = ti.field(ti.i32, c)
+        self.body = ti.field(ti.i32, c)
+        self.local_pos = ti.Vector.field(3, ti.f32, c)
+        self.local_rot = ti.Vector.field(4, ti.f32, c)
+        self.radius = ti.field(ti.f32, c)
+        self.half_height = ti.field(ti.f32, c)
+        self.poly = ti.field(ti.i32, c)
+        self.bound = ti.field(ti.f32, c)
+        self.friction = ti.field(ti.f32, c)
+        self.restitution = ti.field(ti.f32, c)
+        self.aabb_center = ti.Vector.field(3, ti.f32, c)
+        self.aabb_half = ti.Vector.field(3, ti.f32, c)
+        self.dynamic_count = ti.field(ti.i32, ())
+        self.dynamic_ids = ti.field(ti.i32, c)
+        pc = max(1, plane_capacity)
+        self.plane_count = ti.field(ti.i32, ())
+        self.plane_normal = ti.Vector.field(3, ti.f32, pc)
+        self.plane_offset = ti.field(ti.f32, pc)
+        self.plane_body = ti.field(ti.i32, pc)
+        self.plane_friction = ti.field(ti.f32, pc)
+        self.plane_restitution = ti.field(ti.f32, pc)
+
+    def upload(self, arrays: dict[str, np.ndarray], planes: dict[str, np.ndarray], dynamic_ids: np.ndarray) -> None:
+        n = len(arrays["kind"])
+        for name, values in arrays.items():
+            field = getattr(self, name)
+            full = field.to_numpy()
+            full[:n] = values
+            field.from_numpy(full)
+        self.count[None] = n
+        ids = self.dynamic_ids.to_numpy()
+        ids[: len(dynamic_ids)] = dynamic_ids
+        self.dynamic_ids.from_numpy(ids)
+        self.dynamic_count[None] = len(dynamic_ids)
+        m = len(planes["normal"])
+        for name in ("normal", "offset", "body", "friction", "restitution"):
+            field = getattr(self, "plane_" + name)
+            full = field.to_numpy()
+            full[:m] = planes[name]
+            field.from_numpy(full)
+        self.plane_count[None] = m

@@ -1,0 +1,87 @@
+"""Rigid bodies in Taichi fields, split by who reads them (house rule 2).
+
+* info (fixed per body): inverse mass, body-frame inertia and its inverse;
+* state (changes every step): centre-of-mass position, orientation (w, x, y, z),
+  linear and angular velocity (world frame);
+* derived per step: world inverse inertia, read by the solver's inner loop;
+* last good state: a device-side copy taken at the start of every step, restored
+  when a step produces non-finite numbers (the world keeps its last good state).
+
+Static bodies have inverse mass and inverse inertia zero and are never moved.
+"""
+
+
+import numpy as np
+import taichi as ti
+
+from .math3d import quat_to_mat
+
+vec3 = ti.math.vec3
+
+
+@ti.data_oriented
+class Bodies:
+    def __init__(self, capacity: int):
+        self.capacity = capacity
+        c = capacity
+        self.count = ti.field(ti.i32, ())
+        self.inv_mass = ti.field(ti.f32, c)
+        self.inertia = ti.Matrix.field(3, 3, ti.f32, c)
+        self.inv_inertia = ti.Matrix.field(3, 3, ti.f32, c)
+        self.pos = ti.Vector.field(3, ti.f32, c)
+        self.rot = ti.Vector.field(4, ti.f32, c)
+        self.lin_vel = ti.Vector.field(3, ti.f32, c)
+        self.ang_vel = ti.Vector.field(3, ti.f32, c)
+        self.inv_inertia_world = ti.Matrix.field(3, 3, ti.f32, c)
+        self.good_pos = ti.Vector.field(3, ti.f32, c)
+        self.good_rot = ti.Vector.field(4, ti.f32, c)
+        self.good_lin_vel = ti.Vector.field(3, ti.f32, c)
+        self.good_ang_vel = ti.Vector.field(3, ti.f32, c)
+
+    def upload(self, arrays: dict[str, np.ndarray]) -> None:
+        """Write host arrays (N rows each) into the first N slots."""
+        n = len(arrays["inv_mass"])
+        if n > self.capacity:
+            raise ValueError("body capacity exceeded")
+        for name in ("inv_mass", "inertia", "inv_inertia", "pos", "rot", "lin_vel", "ang_vel"):
+            field = getattr(self, name)
+            full = field.to_numpy()
+            full[:n] = arrays[name]
+            field.from_numpy(full.astype(np.float32))
+        self.count[None] = n
+        update_world_inertia(self)
+        save_good_state(self)
+
+    def state_numpy(self) -> dict[str, np.ndarray]:
+        n = int(self.count[None])
+        return {
+            "position": self.pos.to_numpy()[:n],
+            "orientation": self.rot.to_numpy()[:n],
+            "linear_velocity": self.lin_vel.to_numpy()[:n],
+            "angular_velocity": self.ang_vel.to_numpy()[:n],
+        }
+
+
+@ti.kernel
+def update_world_inertia(b: ti.template()):
+    for i in range(b.count[None]):
+        r = quat_to_mat(b.rot[i])
+        b.inv_inertia_world[i] = r @ b.inv_inertia[i] @ r.transpose()
+
+
+@ti.kernel
+def save_good_state(b: ti.template()):
+    for i in range(b.count[None]):
+        b.good_pos[i] = b.pos[i]
+        b.good_rot[i] = b.rot[i]
+        b.good_lin_vel[i] = b.lin_vel[i]
+        b.good_ang_vel[i] = b.ang_vel[i]
+
+
+@ti.kernel
+def restore_good_state(b: ti.template()):
+    for i in range(b.count[None]):
+        b.pos[i] = b.good_pos[i]
+        b.rot[i] = b.good_rot[i]
+        b.lin_vel[i] = b.good_lin_vel[i]
+        b.ang_vel[i] = b.good_ang_vel[i]

@@ -1,0 +1,257 @@
+"""Broadphase: world AABBs, a spatial hash grid rebuilt per step by counting sort, and
+the candidate pair list, in expected O(n) and in a deterministic order.
+
+Dynamic shapes go into a hashed uniform grid rebuilt every step (count cells per
+shape, scan, write entries, count per bucket, scan, fill, then sort each bucket
+by shape id so that the order never depends on thread timing). Static shapes
+(mesh triangles, static bodies) sit in a second grid built once on the host,
+so a 8192-triangle terrain costs only the cells a body overlaps. Planes are
+tested against every dynamic shape (there are a handful).
+
+Pairs are enumerated per dynamic shape ``i`` (partners ``j > i`` in the dynamic
+grid, then static shapes, then planes) in two passes, count then write, so each
+shape's pairs are contiguous and ordered the same way on every run. A pair
+seen through several cells is kept only in the cell holding the minimum corner
+of the two AABBs' intersection (no duplicates, no hash set). Planes are encoded
+as partner ``-1 - plane_index``.
+"""
+
+
+import numpy as np
+import taichi as ti
+
+from .math3d import quat_rotate, quat_to_mat
+from .prefix_sum import Scanner, exclusive_scan
+
+vec3 = ti.math.vec3
+ivec3 = ti.math.ivec3
+
+MAX_CELLS_PER_AXIS = 1 << 20
+
+
+@ti.func
+def cell_hash(c: ivec3, mask: ti.i32) -> ti.i32:
+    h = (c[0] * 73856093) ^ (c[1] * 19349663) ^ (c[2] * 83492791)
+    return h & mask
+
+
+def _pow2(n: int) -> int:
+    return 1 << max(4, int(np.ceil(np.log2(max(2, n)))))
+
+
+@ti.data_oriented
+class Broadphase:
+    def __init__(self, shape_capacity: int, entry_capacity: int, pair_capacity: int, static_grid: dict):
+        sc = max(1, shape_capacity)
+        self.entry_capacity = max(16, entry_capacity)
+        self.pair_capacity = max(16, pair_capacity)
+        self.hash_size = _pow2(self.entry_capacity)
+        self.cell_size = ti.field(ti.f32, ())
+        self.aabb_min = ti.Vector.field(3, ti.f32, sc)
+        self.aabb_max = ti.Vector.field(3, ti.f32, sc)
+        self.cell_count = ti.field(ti.i32, sc + 1)  # per dynamic slot
+        self.entry_start = ti.field(ti.i32, sc + 1)
+        self.entry_total = ti.field(ti.i32, ())
+        self.entry_shape = ti.field(ti.i32, self.entry_capacity)
+        self.entry_bucket = ti.field(ti.i32, self.entry_capacity)
+        self.sorted_shape = ti.field(ti.i32, self.entry_capacity)
+        self.bucket_count = ti.field(ti.i32, self.hash_size + 1)
+        self.bucket_start = ti.field(ti.i32, self.hash_size + 1)
+        self.bucket_fill = ti.field(ti.i32, self.hash_size)
+        self.bucket_total = ti.field(ti.i32, ())
+        self.pair_count = ti.field(ti.i32, sc + 1)  # per dynamic slot
+        self.pair_start = ti.field(ti.i32, sc + 1)
+        self.pair_total = ti.field(ti.i32, ())
+        self.pair_a = ti.field(ti.i32, self.pair_capacity)
+        self.pair_b = ti.field(ti.i32, self.pair_capacity)
+        self.scanner = Scanner(max(sc, self.hash_size) + 1)
+        # static grid, built once on the host
+        self.static_cell_size = ti.field(ti.f32, ())
+        hs = static_grid["hash_size"]
+        self.static_hash_size = hs
+        self.static_bucket_start = ti.field(ti.i32, hs + 1)
+        ns = max(1, len(static_grid["entries"]))
+        self.static_entries = ti.field(ti.i32, ns)
+        self.static_cell_size[None] = static_grid["cell_size"]
+        self.static_bucket_start.from_numpy(static_grid["bucket_start"].astype(np.int32))
+        if len(static_grid["entries"]):
+            self.static_entries.from_numpy(static_grid["entries"].astype(np.int32))
+
+
+def build_static_grid(aabb_min: np.ndarray, aabb_max: np.ndarray, static_ids: np.ndarray, min_cell: float) -> dict:
+    """Hash grid of the static shapes, built once with numpy (statics never move)."""
+    if len(static_ids) == 0:
+        return {"hash_size": 16, "cell_size": 1.0, "bucket_start": np.zeros(17, np.int64), "entries": np.zeros(0, np.int64)}
+    ext = (aabb_max[static_ids] - aabb_min[static_ids]).max(axis=1)
+    cell = float(max(min_cell, np.median(ext)))
+    lo = np.floor(aabb_min[static_ids] / cell).astype(np.int64)
+    hi = np.floor(aabb_max[static_ids] / cell).astype(np.int64)
+    cells, owners = [], []
+    for sid, a, b in zip(static_ids, lo, hi):
+        g = np.stack(np.meshgrid(*[np.arange(a[k], b[k] + 1) for k in range(3)], indexing="ij"), -1).reshape(-1, 3)
+        cells.append(g)
+        owners.append(np.full(len(g), sid))
+    cells = np.concatenate(cells)
+    owners = np.concatenate(owners)
+    hs = _pow2(2 * len(cells))
+    c32 = cells.astype(np.int32)
+    with np.errstate(over="ignore"):
+        h = (c32[:, 0] * np.int32(73856093)) ^ (c32[:, 1] * np.int32(19349663)) ^ (c32[:, 2] * np.int32(83492791))
+    bucket = (h & np.int32(hs - 1)).astype(np.int64)
+    order = np.lexsort((owners, bucket))
+    counts = np.bincount(bucket, minlength=hs)
+    start = np.zeros(hs + 1, np.int64)
+    start[1:] = np.cumsum(counts)
+    return {"hash_size": hs, "cell_size": cell, "bucket_start": start, "entries": owners[order]}
+
+
+@ti.func
+def shape_world_aabb(shapes: ti.template(), bodies: ti.template(), i: ti.i32, margin: ti.f32):
+    """World AABB of shape i grown by ``margin`` on every side."""
+    b = shapes.body[i]
+    q_body = bodies.rot[b]
+    r = quat_to_mat(q_body) @ quat_to_mat(shapes.local_rot[i])
+    center = bodies.pos[b] + quat_rotate(q_body, shapes.local_pos[i]) + r @ shapes.aabb_center[i]
+    h = shapes.aabb_half[i]
+    ext = vec3(0.0)
+    for k in ti.static(range(3)):
+        ext[k] = ti.abs(r[k, 0]) * h[0] + ti.abs(r[k, 1]) * h[1] + ti.abs(r[k, 2]) * h[2] + margin
+    return center - ext, center + ext
+
+
+@ti.kernel
+def compute_all_aabbs(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32):
+    for i in range(shapes.count[None]):
+        lo, hi = shape_world_aabb(shapes, bodies, i, margin)
+        bp.aabb_min[i] = lo
+        bp.aabb_max[i] = hi
+
+
+@ti.func
+def _cell_range(lo: vec3, hi: vec3, cell: ti.f32):
+    a = ti.cast(ti.floor(lo / cell), ti.i32)
+    b = ti.cast(ti.floor(hi / cell), ti.i32)
+    return a, b
+
+
+@ti.kernel
+def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32):
+    n = shapes.dynamic_count[None]
+    cell = bp.cell_size[None]
+    for k in range(n):
+        i = shapes.dynamic_ids[k]
+        lo, hi = shape_world_aabb(shapes, bodies, i, margin)
+        bp.aabb_min[i] = lo
+        bp.aabb_max[i] = hi
+        a, b = _cell_range(lo, hi, cell)
+        d = b - a + 1
+        bp.cell_count[k] = d[0] * d[1] * d[2]
+    exclusive_scan(bp.scanner, bp.cell_count, bp.entry_start, n, bp.entry_total)
+    for h in range(bp.hash_size):
+        bp.bucket_count[h] = 0
+        bp.bucket_fill[h] = 0
+    mask = bp.hash_size - 1
+    for k in range(n):
+        i = shapes.dynamic_ids[k]
+        a, b = _cell_range(bp.aabb_min[i], bp.aabb_max[i], cell)
+        e = bp.entry_start[k]
+        for x in range(a[0], b[0] + 1):
+            for y in range(a[1], b[1] + 1):
+                for z in range(a[2], b[2] + 1):
+                    if e < bp.entry_capacity:
+                        h = cell_hash(ivec3(x, y, z), mask)
+                        bp.entry_shape[e] = i
+                        bp.entry_bucket[e] = h
+                        ti.atomic_add(bp.bucket_count[h], 1)
+                    e += 1
+    exclusive_scan(bp.scanner, bp.bucket_count, bp.bucket_start, bp.hash_size, bp.bucket_total)
+    for e in range(ti.min(bp.entry_total[None], bp.entry_capacity)):
+        h = bp.entry_bucket[e]
+        slot = bp.bucket_start[h] + ti.atomic_add(bp.bucket_fill[h], 1)
+        bp.sorted_shape[slot] = bp.entry_shape[e]
+    for h in range(bp.hash_size):
+        # insertion sort by shape id: the fill above is in thread order
+        s0 = bp.bucket_start[h]
+        s1 = bp.bucket_start[h + 1]
+        for u in range(s0 + 1, s1):
+            v = bp.sorted_shape[u]
+            w = u - 1
+            while w >= s0 and bp.sorted_shape[w] > v:
+                bp.sorted_shape[w + 1] = bp.sorted_shape[w]
+                w -= 1
+            bp.sorted_shape[w + 1] = v
+
+
+@ti.func
+def _overlap(bp: ti.template(), i: ti.i32, j: ti.i32) -> ti.i32:
+    lo_i, hi_i, lo_j, hi_j = bp.aabb_min[i], bp.aabb_max[i], bp.aabb_min[j], bp.aabb_max[j]
+    return (lo_i <= hi_j).all() and (lo_j <= hi_i).all()
+
+
+@ti.func
+def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i32, write: ti.template()) -> ti.i32:
+    i = shapes.dynamic_ids[k]
+    body_i = shapes.body[i]
+    lo, hi = bp.aabb_min[i], bp.aabb_max[i]
+    found = 0
+    # dynamic partners j > i
+    cell = bp.cell_size[None]
+    mask = bp.hash_size - 1
+    a, b = _cell_range(lo, hi, cell)
+    for x in range(a[0], b[0] + 1):
+        for y in range(a[1], b[1] + 1):
+            for z in range(a[2], b[2] + 1):
+                c = ivec3(x, y, z)
+                h = cell_hash(c, mask)
+                for e in range(bp.bucket_start[h], bp.bucket_start[h + 1]):
+                    j = bp.sorted_shape[e]
+                    if j > i and shapes.body[j] != body_i and _overlap(bp, i, j):
+                        ref = ti.cast(ti.floor(ti.max(lo, bp.aabb_min[j]) / cell), ti.i32)
+                        if (ref == c).all():
+                            if ti.static(write):
+                                if base + found < bp.pair_capacity:
+                                    bp.pair_a[base + found] = i
+                                    bp.pair_b[base + found] = j
+                            found += 1
+    # static partners
+    scell = bp.static_cell_size[None]
+    smask = bp.static_hash_size - 1
+    sa, sb = _cell_range(lo, hi, scell)
+    for x in range(sa[0], sb[0] + 1):
+        for y in range(sa[1], sb[1] + 1):
+            for z in range(sa[2], sb[2] + 1):
+                c = ivec3(x, y, z)
+                h = cell_hash(c, smask)
+                for e in range(bp.static_bucket_start[h], bp.static_bucket_start[h + 1]):
+                    j = bp.static_entries[e]
+                    if _overlap(bp, i, j):
+                        ref = ti.cast(ti.floor(ti.max(lo, bp.aabb_min[j]) / scell), ti.i32)
+                        if (ref == c).all():
+                            if ti.static(write):
+                                if base + found < bp.pair_capacity:
+                                    bp.pair_a[base + found] = i
+                                    bp.pair_b[base + found] = j
+                            found += 1
+    # planes
+    for p in range(shapes.plane_count[None]):
+        n = shapes.plane_normal[p]
+        center = 0.5 * (lo + hi)
+        half = 0.5 * (hi - lo)
+        lowest = n.dot(center) - (ti.abs(n[0]) * half[0] + ti.abs(n[1]) * half[1] + ti.abs(n[2]) * half[2])
+        if lowest <= shapes.plane_offset[p]:
+            if ti.static(write):
+                if base + found < bp.pair_capacity:
+                    bp.pair_a[base + found] = i
+                    bp.pair_b[base + found] = -1 - p
+            found += 1
+    return found
+
+
+@ti.kernel
+def find_pairs(bp: ti.template(), shapes: ti.template()):
+    n = shapes.dynamic_count[None]
+    for k in range(n):
+        bp.pair_count[k] = _visit_pairs(bp, shapes, k, 0, False)
+    exclusive_scan(bp.scanner, bp.pair_count, bp.pair_start, n, bp.pair_total)
+    for k in range(n):
+        _visit_pairs(bp, shapes, k, bp.pair_start[k], True)

@@ -1,0 +1,170 @@
+"""Turn a validated Scene into the world's Taichi data: bodies, shapes, polytope pool,
+static grid, and the initial buffer capacities.
+
+This runs once per world on the host (numpy), never inside a step. Scene bodies
+keep their order (row i of ``World.state()`` is ``scene.bodies[i]``); one extra
+static body at the origin carries the planes and mesh triangles. Identical
+polytopes (e.g. 5000 equal boxes) are stored once. Triangles are stored about
+their centroid so float32 stays precise far from the origin.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bodies import Bodies
+from .broadphase import build_static_grid, compute_all_aabbs
+from .scene.spec import Scene
+from .settings import Settings
+from .shapes import (
+    BOX, CAPSULE, HULL, SPHERE, TRIANGLE, PolytopePool, ShapeTable, box_polytope, hull_polytope, triangle_polytope,
+)
+
+
+@dataclass
+class WorldData:
+    bodies: Bodies
+    shapes: ShapeTable
+    pool: PolytopePool
+    static_grid: dict
+    cell_size: float
+    entry_capacity: int
+    initial_pair_capacity: int
+
+
+def _quat_mat(q) -> np.ndarray:
+    w, x, y, z = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def build_world_data(scene: Scene, settings: Settings) -> WorldData:
+    n_scene = len(scene.bodies)
+    n_bodies = n_scene + 1  # + the static carrier of planes and meshes
+    ground = n_scene
+    polys: list = []
+    poly_index: dict = {}
+
+    def add_poly(key, make):
+        if key is not None and key in poly_index:
+            return poly_index[key]
+        poly = make()
+        polys.append(poly)
+        idx = len(polys) - 1
+        if key is not None:
+            poly_index[key] = idx
+        return idx
+
+    rows = {k: [] for k in ("kind", "body", "local_pos", "local_rot", "radius", "half_height", "poly", "bound",
+                            "friction", "restitution", "aabb_center", "aabb_half")}
+
+    def add_shape(kind, body, lpos, lrot, radius, hh, poly, bound, fr, re, c, half):
+        for k, v in zip(rows, (kind, body, lpos, lrot, radius, hh, poly, bound, fr, re, c, half)):
+            rows[k].append(v)
+
+    inv_mass = np.zeros(n_bodies)
+    inertia = np.zeros((n_bodies, 3, 3))
+    inv_inertia = np.zeros((n_bodies, 3, 3))
+    pos = np.zeros((n_bodies, 3))
+    rot = np.tile([1.0, 0.0, 0.0, 0.0], (n_bodies, 1))
+    lin_vel = np.zeros((n_bodies, 3))
+    ang_vel = np.zeros((n_bodies, 3))
+    dynamic_shapes = []
+    for bi, body in enumerate(scene.bodies):
+        pos[bi] = body.position
+        q = np.asarray(body.orientation, dtype=np.float64)
+        rot[bi] = q / np.linalg.norm(q)
+        if not body.static:
+            inv_mass[bi] = 1.0 / body.mass
+            inertia[bi] = body.inertia
+            inv_inertia[bi] = np.linalg.inv(body.inertia)
+            lin_vel[bi] = body.linear_velocity
+            ang_vel[bi] = body.angular_velocity
+        for sh in body.shapes:
+            lq = np.asarray(sh.local_orientation, dtype=np.float64)
+            lq = lq / np.linalg.norm(lq)
+            if sh.kind == "sphere":
+                r = float(sh.radius)
+                add_shape(SPHERE, bi, sh.local_position, lq, r, 0.0, -1, r, body.friction, body.restitution,
+                          np.zeros(3), np.full(3, r))
+            elif sh.kind == "capsule":
+                r, hh = float(sh.radius), float(sh.half_height)
+                add_shape(CAPSULE, bi, sh.local_position, lq, r, hh, -1, r + hh, body.friction, body.restitution,
+                          np.zeros(3), np.array([r, r, r + hh]))
+            elif sh.kind == "box":
+                h = np.asarray(sh.half_extents, dtype=np.float64)
+                pid = add_poly(("box", *np.round(h, 7)), lambda h=h: box_polytope(h))
+                add_shape(BOX, bi, sh.local_position, lq, 0.0, 0.0, pid, float(np.linalg.norm(h)), body.friction,
+                          body.restitution, np.zeros(3), h)
+            elif sh.kind == "hull":
+                v = np.asarray(sh.vertices, dtype=np.float64)
+                pid = add_poly(None, lambda v=v: hull_polytope(v))
+                pv = polys[pid].vertices
+                lo, hi = pv.min(axis=0), pv.max(axis=0)
+                add_shape(HULL, bi, sh.local_position, lq, 0.0, 0.0, pid, float(np.linalg.norm(pv, axis=1).max()),
+                          body.friction, body.restitution, 0.5 * (lo + hi), 0.5 * (hi - lo))
+            else:  # the loader only lets the kinds above through
+                raise ValueError(f"unknown shape kind {sh.kind!r}")
+            if not body.static:
+                dynamic_shapes.append(len(rows["kind"]) - 1)
+    for mesh in scene.meshes:
+        v = np.asarray(mesh.vertices, dtype=np.float64)
+        for tri in np.asarray(mesh.triangles):
+            p = v[tri]
+            c = p.mean(axis=0)
+            pid = add_poly(None, lambda p=p, c=c: triangle_polytope(*(p - c)))
+            lo, hi = p.min(axis=0) - c, p.max(axis=0) - c
+            add_shape(TRIANGLE, ground, c, np.array([1.0, 0, 0, 0]), 0.0, 0.0, pid,
+                      float(np.linalg.norm(p - c, axis=1).max()), mesh.friction, mesh.restitution,
+                      0.5 * (lo + hi), 0.5 * (hi - lo) + 1e-4)
+    n_shapes = len(rows["kind"])
+    arrays = {
+        "kind": np.asarray(rows["kind"], np.int32),
+        "body": np.asarray(rows["body"], np.int32),
+        "local_pos": np.asarray(rows["local_pos"], np.float32).reshape(-1, 3),
+        "local_rot": np.asarray(rows["local_rot"], np.float32).reshape(-1, 4),
+        "radius": np.asarray(rows["radius"], np.float32),
+        "half_height": np.asarray(rows["half_height"], np.float32),
+        "poly": np.asarray(rows["poly"], np.int32),
+        "bound": np.asarray(rows["bound"], np.float32),
+        "friction": np.asarray(rows["friction"], np.float32),
+        "restitution": np.asarray(rows["restitution"], np.float32),
+        "aabb_center": np.asarray(rows["aabb_center"], np.float32).reshape(-1, 3),
+        "aabb_half": np.asarray(rows["aabb_half"], np.float32).reshape(-1, 3),
+    }
+    planes = {
+        "normal": np.asarray([p.normal for p in scene.planes], np.float32).reshape(-1, 3),
+        "offset": np.asarray([p.offset for p in scene.planes], np.float32),
+        "body": np.full(len(scene.planes), ground, np.int32),
+        "friction": np.asarray([p.friction for p in scene.planes], np.float32),
+        "restitution": np.asarray([p.restitution for p in scene.planes], np.float32),
+    }
+    bodies = Bodies(n_bodies)
+    bodies.upload({"inv_mass": inv_mass, "inertia": inertia, "inv_inertia": inv_inertia, "pos": pos, "rot": rot,
+                   "lin_vel": lin_vel, "ang_vel": ang_vel})
+    shapes = ShapeTable(n_shapes, len(scene.planes))
+    dyn = np.asarray(dynamic_shapes, np.int32)
+    shapes.upload(arrays, planes, dyn)
+    pool = PolytopePool(polys)
+
+    margin = settings.contact_margin
+    diam = 2.0 * arrays["aabb_half"][dyn].max(axis=1) + 2.0 * margin if len(dyn) else np.array([1.0])
+    cell = float(max(1.5 * np.median(diam), 1e-3))
+    # static AABBs: one host-side pass with the same kernel the step uses
+    from .broadphase import Broadphase
+
+    probe = Broadphase(n_shapes, 16, 16, build_static_grid(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int), 1.0))
+    compute_all_aabbs(probe, shapes, bodies, margin)
+    lo = probe.aabb_min.to_numpy()
+    hi = probe.aabb_max.to_numpy()
+    static_ids = np.asarray([i for i in range(n_shapes) if arrays["body"][i] == ground or scene.bodies[arrays["body"][i]].static]
+                            if n_shapes else [], dtype=np.int64)
+    static_grid = build_static_grid(lo, hi, static_ids, cell)
+    n_dyn = max(1, len(dyn))
+    return WorldData(bodies, shapes, pool, static_grid, cell, entry_capacity=16 * n_dyn + 1024,
+                     initial_pair_capacity=12 * n_dyn + 1024)

@@ -1,0 +1,184 @@
+"""The contact buffer: one record per contact point, shared by every solver, and the
+stage that fills it (narrowphase over the broadphase pairs, then compaction).
+
+Normal convention, stated once for the whole engine: ``normal`` points from body
+``a`` to body ``b``; ``a`` is always the dynamic shape that enumerated the pair,
+``b`` its partner (dynamic, static or a plane). Separation < 0 is penetration.
+
+Layout: the narrowphase writes at most 4 points per pair into fixed slots
+``4 * pair + k``; a scan over the per-pair counts then packs them, so points of
+one pair are contiguous (a *manifold*, the block of block mass splitting) and
+their order is that of the pair list: deterministic, with no atomics.
+"""
+
+
+import taichi as ti
+
+from .math3d import quat_mul, quat_rotate
+from .narrowphase import collide
+from .narrowphase.manifold import MAX_POINTS, ShapePose
+from .prefix_sum import Scanner, exclusive_scan
+from .shapes import PLANE
+
+vec3 = ti.math.vec3
+vec4 = ti.math.vec4
+INF = 3.0e38
+
+
+@ti.data_oriented
+class Contacts:
+    def __init__(self, pair_capacity: int, shape_capacity: int):
+        pc = max(16, pair_capacity)
+        cc = pc * MAX_POINTS
+        sc = max(1, shape_capacity)
+        self.pair_capacity = pc
+        self.capacity = cc
+        # per pair, raw narrowphase output
+        self.raw_count = ti.field(ti.i32, pc + 1)
+        self.raw_normal = ti.Vector.field(3, ti.f32, pc)
+        self.raw_point = ti.Vector.field(3, ti.f32, cc)
+        self.raw_sep = ti.field(ti.f32, cc)
+        self.raw_feature = ti.field(ti.i32, cc)
+        self.has_points = ti.field(ti.i32, pc + 1)
+        self.point_start = ti.field(ti.i32, pc + 1)
+        self.manifold_index = ti.field(ti.i32, pc + 1)
+        self.count = ti.field(ti.i32, ())
+        self.manifold_count = ti.field(ti.i32, ())
+        self.scanner = Scanner(pc + 1)
+        # per point
+        self.body_a = ti.field(ti.i32, cc)
+        self.body_b = ti.field(ti.i32, cc)
+        self.shape_a = ti.field(ti.i32, cc)
+        self.partner = ti.field(ti.i32, cc)
+        self.feature = ti.field(ti.i32, cc)
+        self.manifold = ti.field(ti.i32, cc)
+        self.normal = ti.Vector.field(3, ti.f32, cc)
+        self.point = ti.Vector.field(3, ti.f32, cc)
+        self.sep = ti.field(ti.f32, cc)
+        self.friction = ti.field(ti.f32, cc)
+        self.restitution = ti.field(ti.f32, cc)
+        # per manifold (= per touching shape pair): the block of block mass splitting
+        self.m_body_a = ti.field(ti.i32, pc)
+        self.m_body_b = ti.field(ti.i32, pc)
+        self.m_start = ti.field(ti.i32, pc)
+        self.m_count = ti.field(ti.i32, pc)
+        # per shape: its points are contiguous, [shape_first, shape_last)
+        self.shape_first = ti.field(ti.i32, sc)
+        self.shape_last = ti.field(ti.i32, sc)
+
+
+@ti.func
+def shape_pose(shapes: ti.template(), bodies: ti.template(), i: ti.i32) -> ShapePose:
+    b = shapes.body[i]
+    q = bodies.rot[b]
+    return ShapePose(
+        kind=shapes.kind[i],
+        pos=bodies.pos[b] + quat_rotate(q, shapes.local_pos[i]),
+        rot=quat_mul(q, shapes.local_rot[i]),
+        normal=vec3(0.0, 0.0, 1.0),
+        radius=shapes.radius[i],
+        half_height=shapes.half_height[i],
+        poly=shapes.poly[i],
+        bound=shapes.bound[i],
+    )
+
+
+@ti.func
+def plane_pose(shapes: ti.template(), p: ti.i32) -> ShapePose:
+    n = shapes.plane_normal[p]
+    return ShapePose(
+        kind=PLANE,
+        pos=n * shapes.plane_offset[p],
+        rot=vec4(1.0, 0.0, 0.0, 0.0),
+        normal=n,
+        radius=0.0,
+        half_height=0.0,
+        poly=-1,
+        bound=INF,
+    )
+
+
+@ti.func
+def partner_body(shapes: ti.template(), partner: ti.i32) -> ti.i32:
+    b = 0
+    if partner < 0:
+        b = shapes.plane_body[-1 - partner]
+    else:
+        b = shapes.body[partner]
+    return b
+
+
+@ti.func
+def partner_material(shapes: ti.template(), partner: ti.i32):
+    f, e = 0.0, 0.0
+    if partner < 0:
+        f = shapes.plane_friction[-1 - partner]
+        e = shapes.plane_restitution[-1 - partner]
+    else:
+        f = shapes.friction[partner]
+        e = shapes.restitution[partner]
+    return f, e
+
+
+@ti.kernel
+def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
+                  pool: ti.template(), margin: ti.f32):
+    """Narrowphase over every candidate pair, then pack the points and manifolds."""
+    n_pairs = ti.min(bp.pair_total[None], bp.pair_capacity)
+    for p in range(n_pairs):
+        i = bp.pair_a[p]
+        j = bp.pair_b[p]
+        a = shape_pose(shapes, bodies, i)
+        b = ShapePose()
+        if j < 0:
+            b = plane_pose(shapes, -1 - j)
+        else:
+            b = shape_pose(shapes, bodies, j)
+        pair_margin = ti.min(margin, 0.25 * ti.min(a.bound, b.bound))
+        m = collide(pool, a, b, pair_margin)
+        c.raw_count[p] = m.count
+        c.has_points[p] = 1 if m.count > 0 else 0
+        c.raw_normal[p] = m.normal
+        for k in range(m.count):
+            s = MAX_POINTS * p + k
+            c.raw_point[s] = vec3(m.points[k, 0], m.points[k, 1], m.points[k, 2])
+            c.raw_sep[s] = m.separation[k]
+            c.raw_feature[s] = m.feature[k]
+    exclusive_scan(c.scanner, c.raw_count, c.point_start, n_pairs, c.count)
+    exclusive_scan(c.scanner, c.has_points, c.manifold_index, n_pairs, c.manifold_count)
+    for p in range(n_pairs):
+        cnt = c.raw_count[p]
+        if cnt > 0:
+            i = bp.pair_a[p]
+            j = bp.pair_b[p]
+            ba = shapes.body[i]
+            bb = partner_body(shapes, j)
+            fb, eb = partner_material(shapes, j)
+            mu = ti.sqrt(shapes.friction[i] * fb)
+            e = ti.max(shapes.restitution[i], eb)
+            base = c.point_start[p]
+            mi = c.manifold_index[p]
+            c.m_body_a[mi] = ba
+            c.m_body_b[mi] = bb
+            c.m_start[mi] = base
+            c.m_count[mi] = cnt
+            for k in range(cnt):
+                s = MAX_POINTS * p + k
+                q = base + k
+                c.body_a[q] = ba
+                c.body_b[q] = bb
+                c.shape_a[q] = i
+                c.partner[q] = j
+                c.feature[q] = c.raw_feature[s]
+                c.manifold[q] = mi
+                c.normal[q] = c.raw_normal[p]
+                c.point[q] = c.raw_point[s]
+                c.sep[q] = c.raw_sep[s]
+                c.friction[q] = mu
+                c.restitution[q] = e
+    for k in range(shapes.dynamic_count[None]):
+        i = shapes.dynamic_ids[k]
+        p0 = bp.pair_start[k]
+        p1 = bp.pair_start[k + 1]
+        c.shape_first[i] = c.point_start[ti.min(p0, n_pairs)]
+        c.shape_last[i] = c.point_start[ti.min(p1, n_pairs)]

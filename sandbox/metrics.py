@@ -1,0 +1,43 @@
+"""Per-step diagnostics computed in kernels: energy, penetration, LCP residual.
+
+Definitions follow method.md section 3: kinetic energy sum(1/2 m v^2 + 1/2 w.Iw)
+[J]; penetration max(0, -separation) over this step's contact points [m] (the
+points found at the start of the step, as the anchor engines report them); the
+natural-map residual of the velocity-level LCP over all rows, normal rows
+|min(J_n u + b_n, K_nn lambda_n)| and friction rows the distance of lambda_t from
+its projected gradient step, reported as RMS and max [m/s]. The reductions use
+float atomics, so the last bits may vary run to run; they never feed back into
+the simulation, which stays bitwise repeatable.
+"""
+
+
+import taichi as ti
+
+from .math3d import quat_rotate_inv
+
+KE, MAX_PEN, SUM_PEN, RES_SQ_SUM, RES_MAX_SQ = range(5)
+
+
+@ti.data_oriented
+class MetricBuffer:
+    def __init__(self):
+        self.values = ti.field(ti.f32, 8)
+
+
+@ti.kernel
+def compute_metrics(out: ti.template(), bodies: ti.template(), c: ti.template(), rows: ti.template()):
+    for k in range(8):
+        out.values[k] = 0.0
+    for i in range(bodies.count[None]):
+        if bodies.inv_mass[i] > 0.0:
+            v = bodies.lin_vel[i]
+            w = quat_rotate_inv(bodies.rot[i], bodies.ang_vel[i])
+            ke = 0.5 * v.norm_sqr() / bodies.inv_mass[i] + 0.5 * w.dot(bodies.inertia[i] @ w)
+            ti.atomic_add(out.values[KE], ke)
+    for q in range(c.count[None]):
+        pen = ti.max(-c.sep[q], 0.0)
+        ti.atomic_max(out.values[MAX_PEN], pen)
+        ti.atomic_add(out.values[SUM_PEN], pen)
+        r = rows.residual[q]
+        ti.atomic_add(out.values[RES_SQ_SUM], r)
+        ti.atomic_max(out.values[RES_MAX_SQ], r)

@@ -1,0 +1,91 @@
+"""Contact persistence: carry last step's impulses to this step's points (warm starting).
+
+Points of one shape are contiguous in the contact buffer (contacts.py), so the
+old points of shape ``a`` are one short range ``[first, last)``. A new point
+takes the impulse of the old point with the same partner and feature id; failing
+that (clipping can rotate feature ids while the points stay put, see Newton's
+``contact_match.py``), of the nearest old point of the same partner within
+``Settings.match_distance``, compared in body a's frame. Tangent impulses are
+kept as a world vector and re-projected on the new basis, so a rotating basis
+does not kick resting stacks. No atomics: the result is deterministic.
+"""
+
+
+import taichi as ti
+
+from .math3d import quat_rotate, quat_rotate_inv
+
+vec3 = ti.math.vec3
+
+
+@ti.data_oriented
+class ContactHistory:
+    def __init__(self, capacity: int, shape_capacity: int):
+        c = max(16, capacity)
+        sc = max(1, shape_capacity)
+        self.count = ti.field(ti.i32, ())
+        self.partner = ti.field(ti.i32, c)
+        self.feature = ti.field(ti.i32, c)
+        self.anchor = ti.Vector.field(3, ti.f32, c)  # in body a's frame [m]
+        self.lam_n = ti.field(ti.f32, c)
+        self.lam_t = ti.Vector.field(3, ti.f32, c)  # world tangent impulse [N s]
+        self.shape_first = ti.field(ti.i32, sc)
+        self.shape_last = ti.field(ti.i32, sc)
+        self.capacity = c
+
+
+@ti.kernel
+def clear_history(hist: ti.template()):
+    hist.count[None] = 0
+    for i in range(hist.shape_first.shape[0]):
+        hist.shape_first[i] = 0
+        hist.shape_last[i] = 0
+
+
+@ti.kernel
+def match_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
+                   shapes: ti.template(), match_distance: ti.f32, warm_factor: ti.f32):
+    for q in range(c.count[None]):
+        i = c.shape_a[q]
+        a = c.body_a[q]
+        anchor = quat_rotate_inv(bodies.rot[a], c.point[q] - bodies.pos[a])
+        best = -1
+        best_d2 = match_distance * match_distance
+        exact = 0
+        for o in range(hist.shape_first[i], hist.shape_last[i]):
+            if exact == 0 and hist.partner[o] == c.partner[q]:
+                if hist.feature[o] == c.feature[q]:
+                    best = o
+                    exact = 1
+                else:
+                    d2 = (hist.anchor[o] - anchor).norm_sqr()
+                    if d2 < best_d2:
+                        best_d2 = d2
+                        best = o
+        lam = vec3(0.0)
+        if best >= 0:
+            lt = hist.lam_t[best]
+            lam = warm_factor * vec3(hist.lam_n[best], lt.dot(rows.t1[q]), lt.dot(rows.t2[q]))
+        rows.lam[q] = lam
+
+
+@ti.kernel
+def store_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
+                   shapes: ti.template()):
+    n = ti.min(c.count[None], hist.capacity)
+    hist.count[None] = n
+    for q in range(n):
+        a = c.body_a[q]
+        hist.partner[q] = c.partner[q]
+        hist.feature[q] = c.feature[q]
+        hist.anchor[q] = quat_rotate_inv(bodies.rot[a], c.point[q] - bodies.pos[a])
+        lam = rows.lam[q]
+        hist.lam_n[q] = lam[0]
+        hist.lam_t[q] = rows.t1[q] * lam[1] + rows.t2[q] * lam[2]
+    for i in range(hist.shape_first.shape[0]):
+        hist.shape_first[i] = 0
+        hist.shape_last[i] = 0
+    for k in range(shapes.dynamic_count[None]):
+        i = shapes.dynamic_ids[k]
+        hist.shape_first[i] = c.shape_first[i]
+        hist.shape_last[i] = ti.min(c.shape_last[i], n)

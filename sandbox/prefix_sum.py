@@ -1,0 +1,50 @@
+"""Deterministic exclusive prefix sum over an i32 field, the same code on CPU and CUDA.
+
+Taichi's ``PrefixSumExecutor`` supports CUDA/Vulkan only (apis.md 4.4), so we
+scan in three loops: per-block sums in parallel, a short serial scan over the
+block sums, then each block scanned serially from its offset. With 256-element
+blocks the serial middle loop is ~n/256 long, which keeps it cheap on a GPU,
+and integer addition makes the result independent of thread scheduling.
+"""
+
+
+import taichi as ti
+
+BLOCK = 256
+
+
+@ti.data_oriented
+class Scanner:
+    """Scratch for scans of up to ``capacity`` elements."""
+
+    def __init__(self, capacity: int):
+        self.capacity = capacity
+        self.block_sum = ti.field(ti.i32, max(1, (capacity + BLOCK - 1) // BLOCK + 1))
+
+
+@ti.func
+def exclusive_scan(scan: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template()):
+    """dst[i] = sum(src[:i]) for i < n, dst[n] = total[None] = sum(src[:n]).
+
+    Must be called at the top level of a kernel (it contains three top-level loops).
+    """
+    blocks = (n + BLOCK - 1) // BLOCK
+    for blk in range(blocks):
+        s = 0
+        for k in range(blk * BLOCK, ti.min((blk + 1) * BLOCK, n)):
+            s += src[k]
+        scan.block_sum[blk] = s
+    for _ in range(1):
+        run = 0
+        for blk in range(blocks):
+            v = scan.block_sum[blk]
+            scan.block_sum[blk] = run
+            run += v
+        total[None] = run
+        dst[n] = run
+    for blk in range(blocks):
+        run = scan.block_sum[blk]
+        for k in range(blk * BLOCK, ti.min((blk + 1) * BLOCK, n)):
+            v = src[k]
+            dst[k] = run
+            run += v

@@ -1,0 +1,50 @@
+"""Stage timers. A stage is timed by syncing the device, then reading the clock, so
+CUDA's asynchronous launches are not mistaken for speed (house rule 1). Syncing
+costs a little, so timing is off unless asked for (benchmarks and the CLI ask).
+"""
+
+from __future__ import annotations
+
+import time
+from collections import defaultdict
+from contextlib import contextmanager
+
+import taichi as ti
+
+STAGES = ("integrate_velocities", "broadphase", "narrowphase", "prepare", "solve", "integrate_positions")
+GROUPS = {
+    "collide": ("broadphase", "narrowphase"),
+    "solve": ("prepare", "solve"),
+    "integrate": ("integrate_velocities", "integrate_positions"),
+}
+
+
+class Profiler:
+    def __init__(self, enabled: bool = False):
+        self.enabled = enabled
+        self.total_s: dict[str, float] = defaultdict(float)
+        self.steps = 0
+
+    @contextmanager
+    def stage(self, name: str):
+        if not self.enabled:
+            yield
+            return
+        ti.sync()
+        t0 = time.perf_counter()
+        yield
+        ti.sync()
+        self.total_s[name] += time.perf_counter() - t0
+
+    def reset(self):
+        self.total_s.clear()
+        self.steps = 0
+
+    def mean_ms(self) -> dict[str, float]:
+        """Mean ms per step for every stage, the three groups and the total."""
+        n = max(1, self.steps)
+        out = {name: 1e3 * self.total_s.get(name, 0.0) / n for name in STAGES}
+        for group, members in GROUPS.items():
+            out[group] = sum(out[m] for m in members)
+        out["total"] = sum(out[name] for name in STAGES)
+        return out

@@ -1,0 +1,174 @@
+"""Blocks, body adjacency and impulse slots: the deterministic scatter/gather that
+projected Jacobi and both mass-splitting solvers share (method.md 1.6 and 1.11).
+
+A *block* is either one contact point (per-point Jacobi / mass splitting) or one
+manifold, i.e. all points of one shape pair (block mass splitting; also the unit
+the PGS solvers visit). Each block has two endpoints (its bodies a and b). For
+every dynamic body we build, per step, the sorted list of endpoints touching it
+(counting sort by body, then a per-body sort, so thread timing never changes
+the order). A sweep writes one velocity change per endpoint into its slot;
+each body then sums its slots in that fixed order. No float atomics, so CPU
+runs are bitwise repeatable.
+
+Per body, ``scale`` multiplies inverse mass and inertia inside a block and
+``weight`` multiplies the velocity change written to the slot:
+* mass splitting: scale = n_b (blocks touching b), weight = 1/n_b — the average
+  of the n_b sub-body velocities, i.e. every impulse applied with the full mass;
+* projected Jacobi with relaxation omega: scale = 1/omega, weight = omega. The
+  step becomes lambda += omega * dlambda (K scaled by 1/omega), and the impulse
+  written to the body equals the change of the accumulated lambda, so warm
+  starting stays consistent. It is mass splitting with one global split factor
+  1/omega instead of each body's own count n_b;
+* warm start: scale = 1, weight = 1 (plain sum of last step's impulses).
+"""
+
+
+import taichi as ti
+
+from ..prefix_sum import Scanner, exclusive_scan
+from .rows import point_impulse, solve_point
+
+vec3 = ti.math.vec3
+
+PER_POINT = 0
+PER_MANIFOLD = 1
+MODE_JACOBI = 0
+MODE_SPLIT = 1
+
+
+@ti.data_oriented
+class BlockScratch:
+    def __init__(self, block_capacity: int, body_capacity: int):
+        bc = max(16, block_capacity)
+        nb = max(1, body_capacity)
+        self.block_count = ti.field(ti.i32, ())
+        self.adj_count = ti.field(ti.i32, nb + 1)
+        self.adj_start = ti.field(ti.i32, nb + 1)
+        self.adj_fill = ti.field(ti.i32, nb)
+        self.adj_total = ti.field(ti.i32, ())
+        self.adj = ti.field(ti.i32, 2 * bc)
+        self.slot_dv = ti.Vector.field(3, ti.f32, 2 * bc)
+        self.slot_dw = ti.Vector.field(3, ti.f32, 2 * bc)
+        self.scale = ti.field(ti.f32, nb)
+        self.weight = ti.field(ti.f32, nb)
+        self.max_degree = ti.field(ti.i32, ())
+        self.scanner = Scanner(nb + 1)
+
+
+@ti.func
+def block_range(c: ti.template(), k: ti.i32, kind: ti.template()):
+    start, count, a, b = k, 1, 0, 0
+    if ti.static(kind == PER_POINT):
+        a = c.body_a[k]
+        b = c.body_b[k]
+    else:
+        start = c.m_start[k]
+        count = c.m_count[k]
+        a = c.m_body_a[k]
+        b = c.m_body_b[k]
+    return start, count, a, b
+
+
+@ti.func
+def n_blocks(c: ti.template(), kind: ti.template()) -> ti.i32:
+    n = 0
+    if ti.static(kind == PER_POINT):
+        n = c.count[None]
+    else:
+        n = c.manifold_count[None]
+    return n
+
+
+@ti.kernel
+def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+                    mode: ti.template(), omega: ti.f32):
+    nb = bodies.count[None]
+    nk = n_blocks(c, kind)
+    s.block_count[None] = nk
+    for i in range(nb):
+        s.adj_count[i] = 0
+        s.adj_fill[i] = 0
+    for k in range(nk):
+        _, _, a, b = block_range(c, k, kind)
+        if bodies.inv_mass[a] > 0.0:
+            ti.atomic_add(s.adj_count[a], 1)
+        if bodies.inv_mass[b] > 0.0:
+            ti.atomic_add(s.adj_count[b], 1)
+    exclusive_scan(s.scanner, s.adj_count, s.adj_start, nb, s.adj_total)
+    for k in range(nk):
+        _, _, a, b = block_range(c, k, kind)
+        if bodies.inv_mass[a] > 0.0:
+            s.adj[s.adj_start[a] + ti.atomic_add(s.adj_fill[a], 1)] = 2 * k
+        if bodies.inv_mass[b] > 0.0:
+            s.adj[s.adj_start[b] + ti.atomic_add(s.adj_fill[b], 1)] = 2 * k + 1
+    s.max_degree[None] = 0
+    for i in range(nb):
+        e0 = s.adj_start[i]
+        e1 = s.adj_start[i + 1]
+        for u in range(e0 + 1, e1):
+            v = s.adj[u]
+            w = u - 1
+            while w >= e0 and s.adj[w] > v:
+                s.adj[w + 1] = s.adj[w]
+                w -= 1
+            s.adj[w + 1] = v
+        deg = ti.max(e1 - e0, 1)
+        ti.atomic_max(s.max_degree[None], e1 - e0)
+        if ti.static(mode == MODE_SPLIT):
+            s.scale[i] = ti.cast(deg, ti.f32)
+            s.weight[i] = 1.0 / deg
+        else:
+            s.scale[i] = 1.0 / omega
+            s.weight[i] = omega
+
+
+@ti.func
+def gather_slots(s: ti.template(), bodies: ti.template()):
+    for i in range(bodies.count[None]):
+        if bodies.inv_mass[i] > 0.0:
+            dv = vec3(0.0)
+            dw = vec3(0.0)
+            for e in range(s.adj_start[i], s.adj_start[i + 1]):
+                slot = s.adj[e]
+                dv += s.slot_dv[slot]
+                dw += s.slot_dw[slot]
+            bodies.lin_vel[i] += dv
+            bodies.ang_vel[i] += dw
+
+
+@ti.kernel
+def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template()):
+    """Apply last step's matched impulses with the full masses (method.md 1.10)."""
+    for k in range(s.block_count[None]):
+        start, count, a, b = block_range(c, k, kind)
+        dva, dwa, dvb, dwb = vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0)
+        for q in range(start, start + count):
+            imp = point_impulse(rows, c, q)
+            dva -= bodies.inv_mass[a] * imp
+            dwa -= bodies.inv_inertia_world[a] @ rows.ra[q].cross(imp)
+            dvb += bodies.inv_mass[b] * imp
+            dwb += bodies.inv_inertia_world[b] @ rows.rb[q].cross(imp)
+        s.slot_dv[2 * k] = dva
+        s.slot_dw[2 * k] = dwa
+        s.slot_dv[2 * k + 1] = dvb
+        s.slot_dw[2 * k + 1] = dwb
+    gather_slots(s, bodies)
+
+
+@ti.kernel
+def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template()):
+    """One parallel sweep over all blocks from the same velocities, then the per-body merge."""
+    for k in range(s.block_count[None]):
+        start, count, a, b = block_range(c, k, kind)
+        va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
+        vb0, wb0 = bodies.lin_vel[b], bodies.ang_vel[b]
+        va, wa, vb, wb = va0, wa0, vb0, wb0
+        sa = s.scale[a]
+        sb = s.scale[b]
+        for q in range(start, start + count):
+            va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, sa, sb)
+        s.slot_dv[2 * k] = (va - va0) * s.weight[a]
+        s.slot_dw[2 * k] = (wa - wa0) * s.weight[a]
+        s.slot_dv[2 * k + 1] = (vb - vb0) * s.weight[b]
+        s.slot_dw[2 * k + 1] = (wb - wb0) * s.weight[b]
+    gather_slots(s, bodies)
