@@ -41,7 +41,8 @@ def _pow2(n: int) -> int:
 
 @ti.data_oriented
 class Broadphase:
-    def __init__(self, shape_capacity: int, entry_capacity: int, pair_capacity: int, static_grid: dict):
+    def __init__(self, shape_capacity: int, entry_capacity: int, pair_capacity: int, static_hash_size: int,
+                 static_entry_capacity: int):
         sc = max(1, shape_capacity)
         self.entry_capacity = max(16, entry_capacity)
         self.pair_capacity = max(16, pair_capacity)
@@ -65,23 +66,33 @@ class Broadphase:
         self.pair_a = ti.field(ti.i32, self.pair_capacity)
         self.pair_b = ti.field(ti.i32, self.pair_capacity)
         self.scanner = Scanner(max(sc, self.hash_size) + 1)
-        # static grid, built once on the host
+        # static grid, built once per world on the host
         self.static_cell_size = ti.field(ti.f32, ())
-        hs = static_grid["hash_size"]
-        self.static_hash_size = hs
-        self.static_bucket_start = ti.field(ti.i32, hs + 1)
-        ns = max(1, len(static_grid["entries"]))
-        self.static_entries = ti.field(ti.i32, ns)
-        self.static_cell_size[None] = static_grid["cell_size"]
-        self.static_bucket_start.from_numpy(static_grid["bucket_start"].astype(np.int32))
-        if len(static_grid["entries"]):
-            self.static_entries.from_numpy(static_grid["entries"].astype(np.int32))
+        self.static_hash_size = static_hash_size
+        self.static_bucket_start = ti.field(ti.i32, static_hash_size + 1)
+        self.static_entries = ti.field(ti.i32, max(1, static_entry_capacity))
+
+    def upload_static_grid(self, grid: dict) -> None:
+        """Install a grid from ``build_static_grid`` (its hash size must match this buffer's)."""
+        if grid["hash_size"] != self.static_hash_size:
+            raise ValueError("static grid was built for another hash size")
+        self.static_cell_size[None] = grid["cell_size"]
+        self.static_bucket_start.from_numpy(grid["bucket_start"].astype(np.int32))
+        entries = np.zeros(self.static_entries.shape[0], np.int32)
+        entries[: len(grid["entries"])] = grid["entries"]
+        self.static_entries.from_numpy(entries)
 
 
-def build_static_grid(aabb_min: np.ndarray, aabb_max: np.ndarray, static_ids: np.ndarray, min_cell: float) -> dict:
-    """Hash grid of the static shapes, built once with numpy (statics never move)."""
+def build_static_grid(aabb_min: np.ndarray, aabb_max: np.ndarray, static_ids: np.ndarray, min_cell: float,
+                      hash_size: int | None = None) -> dict:
+    """Hash grid of the static shapes, built once with numpy (statics never move).
+
+    ``hash_size`` (a power of two) may be given to fit a pooled buffer; by default
+    it is the next power of two above twice the number of entries."""
     if len(static_ids) == 0:
-        return {"hash_size": 16, "cell_size": 1.0, "bucket_start": np.zeros(17, np.int64), "entries": np.zeros(0, np.int64)}
+        hs = hash_size or 16
+        return {"hash_size": hs, "cell_size": 1.0, "bucket_start": np.zeros(hs + 1, np.int64),
+                "entries": np.zeros(0, np.int64)}
     ext = (aabb_max[static_ids] - aabb_min[static_ids]).max(axis=1)
     cell = float(max(min_cell, np.median(ext)))
     lo = np.floor(aabb_min[static_ids] / cell).astype(np.int64)
@@ -93,7 +104,7 @@ def build_static_grid(aabb_min: np.ndarray, aabb_max: np.ndarray, static_ids: np
         owners.append(np.full(len(g), sid))
     cells = np.concatenate(cells)
     owners = np.concatenate(owners)
-    hs = _pow2(2 * len(cells))
+    hs = hash_size or _pow2(2 * len(cells))
     c32 = cells.astype(np.int32)
     with np.errstate(over="ignore"):
         h = (c32[:, 0] * np.int32(73856093)) ^ (c32[:, 1] * np.int32(19349663)) ^ (c32[:, 2] * np.int32(83492791))

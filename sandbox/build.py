@@ -1,5 +1,5 @@
-"""Turn a validated Scene into the world's Taichi data: bodies, shapes, polytope pool,
-static grid, and the initial buffer capacities.
+"""Turn a validated Scene into host arrays (``host_world``) and upload them into a
+pooled BufferSet (``upload``): bodies, shapes, polytope pool, static grid.
 
 This runs once per world on the host (numpy), never inside a step. Scene bodies
 keep their order (row i of ``World.state()`` is ``scene.bodies[i]``); one extra
@@ -14,24 +14,40 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .bodies import Bodies
 from .broadphase import build_static_grid, compute_all_aabbs
+from .buffers import BufferSet, Capacities
+from .persistence import clear_history
 from .scene.spec import Scene
 from .settings import Settings
 from .shapes import (
-    BOX, CAPSULE, HULL, SPHERE, TRIANGLE, PolytopePool, ShapeTable, box_polytope, hull_polytope, triangle_polytope,
+    BOX, CAPSULE, HULL, PLANE, SPHERE, TRIANGLE, PolytopePool, box_polytope, hull_polytope, triangle_polytope,
 )
 
 
 @dataclass
-class WorldData:
-    bodies: Bodies
-    shapes: ShapeTable
-    pool: PolytopePool
-    static_grid: dict
+class HostWorld:
+    """Everything a world uploads, as host arrays, plus its capacity needs."""
+
+    body_arrays: dict
+    shape_arrays: dict
+    plane_arrays: dict
+    dynamic_ids: np.ndarray
+    static_ids: np.ndarray
+    polytopes: list
+    kinds: tuple
     cell_size: float
-    entry_capacity: int
-    initial_pair_capacity: int
+    static_entries: int
+    n_dynamic: int
+
+    def capacities(self, pairs: int | None = None, grid_entries: int | None = None) -> Capacities:
+        sizes = PolytopePool.sizes(self.polytopes)
+        return Capacities.for_counts(
+            bodies=len(self.body_arrays["inv_mass"]), shapes=len(self.shape_arrays["kind"]),
+            planes=len(self.plane_arrays["normal"]), polys=sizes[0], poly_verts=sizes[1], poly_faces=sizes[2],
+            poly_loops=sizes[3], poly_edges=sizes[4], static_hash=2 * self.static_entries,
+            static_entries=self.static_entries, grid_entries=grid_entries or (16 * self.n_dynamic + 1024),
+            pairs=pairs or (12 * self.n_dynamic + 1024),
+        )
 
 
 def _quat_mat(q) -> np.ndarray:
@@ -43,7 +59,7 @@ def _quat_mat(q) -> np.ndarray:
     ])
 
 
-def build_world_data(scene: Scene, settings: Settings) -> WorldData:
+def host_world(scene: Scene, settings: Settings) -> HostWorld:
     n_scene = len(scene.bodies)
     n_bodies = n_scene + 1  # + the static carrier of planes and meshes
     ground = n_scene
@@ -144,27 +160,59 @@ def build_world_data(scene: Scene, settings: Settings) -> WorldData:
         "friction": np.asarray([p.friction for p in scene.planes], np.float32),
         "restitution": np.asarray([p.restitution for p in scene.planes], np.float32),
     }
-    bodies = Bodies(n_bodies)
-    bodies.upload({"inv_mass": inv_mass, "inertia": inertia, "inv_inertia": inv_inertia, "pos": pos, "rot": rot,
-                   "lin_vel": lin_vel, "ang_vel": ang_vel})
-    shapes = ShapeTable(n_shapes, len(scene.planes))
+    body_arrays = {"inv_mass": inv_mass, "inertia": inertia, "inv_inertia": inv_inertia, "pos": pos, "rot": rot,
+                   "lin_vel": lin_vel, "ang_vel": ang_vel}
     dyn = np.asarray(dynamic_shapes, np.int32)
-    shapes.upload(arrays, planes, dyn)
-    pool = PolytopePool(polys)
-
     margin = settings.contact_margin
     diam = 2.0 * arrays["aabb_half"][dyn].max(axis=1) + 2.0 * margin if len(dyn) else np.array([1.0])
     cell = float(max(1.5 * np.median(diam), 1e-3))
-    # static AABBs: one host-side pass with the same kernel the step uses
-    from .broadphase import Broadphase
+    is_static_body = np.array([b.static for b in scene.bodies] + [True])
+    static_ids = np.flatnonzero(is_static_body[arrays["body"]]) if n_shapes else np.zeros(0, np.int64)
+    # entries of the static grid: cells each static AABB covers, counted like build_static_grid does
+    kinds = tuple(sorted(set(int(k) for k in arrays["kind"]) | ({PLANE} if len(scene.planes) else set())))
+    host = HostWorld(body_arrays, arrays, planes, dyn, static_ids, polys, kinds, cell, 0, len(dyn))
+    host.static_entries = _static_entry_count(host, margin)
+    return host
 
-    probe = Broadphase(n_shapes, 16, 16, build_static_grid(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, int), 1.0))
-    compute_all_aabbs(probe, shapes, bodies, margin)
-    lo = probe.aabb_min.to_numpy()
-    hi = probe.aabb_max.to_numpy()
-    static_ids = np.asarray([i for i in range(n_shapes) if arrays["body"][i] == ground or scene.bodies[arrays["body"][i]].static]
-                            if n_shapes else [], dtype=np.int64)
-    static_grid = build_static_grid(lo, hi, static_ids, cell)
-    n_dyn = max(1, len(dyn))
-    return WorldData(bodies, shapes, pool, static_grid, cell, entry_capacity=16 * n_dyn + 1024,
-                     initial_pair_capacity=12 * n_dyn + 1024)
+
+def _static_aabbs(host: HostWorld, margin: float):
+    """World AABBs of the static shapes on the host (statics never move)."""
+    a = host.shape_arrays
+    lo = np.zeros((len(a["kind"]), 3))
+    hi = np.zeros((len(a["kind"]), 3))
+    for i in host.static_ids:
+        b = a["body"][i]
+        r = _quat_mat(host.body_arrays["rot"][b]) @ _quat_mat(a["local_rot"][i])
+        c = host.body_arrays["pos"][b] + _quat_mat(host.body_arrays["rot"][b]) @ a["local_pos"][i] + r @ a["aabb_center"][i]
+        e = np.abs(r) @ a["aabb_half"][i] + margin
+        lo[i], hi[i] = c - e, c + e
+    return lo, hi
+
+
+def _static_entry_count(host: HostWorld, margin: float) -> int:
+    if len(host.static_ids) == 0:
+        return 0
+    lo, hi = _static_aabbs(host, margin)
+    cell = _static_cell(host, lo, hi)
+    a = np.floor(lo[host.static_ids] / cell)
+    b = np.floor(hi[host.static_ids] / cell)
+    return int(np.prod(b - a + 1, axis=1).sum())
+
+
+def _static_cell(host: HostWorld, lo, hi) -> float:
+    ext = (hi[host.static_ids] - lo[host.static_ids]).max(axis=1)
+    return float(max(host.cell_size, np.median(ext)))
+
+
+def upload(host: HostWorld, buffers: BufferSet, margin: float) -> None:
+    """Fill a pooled BufferSet with a world's data and reset its per-step scratch."""
+    buffers.bodies.upload(host.body_arrays)
+    buffers.shapes.upload(host.shape_arrays, host.plane_arrays, host.dynamic_ids)
+    buffers.pool.upload(host.polytopes)
+    lo, hi = _static_aabbs(host, margin)
+    cell = _static_cell(host, lo, hi) if len(host.static_ids) else host.cell_size
+    grid = build_static_grid(lo, hi, host.static_ids, cell, hash_size=buffers.bp.static_hash_size)
+    buffers.bp.upload_static_grid(grid)
+    buffers.bp.cell_size[None] = host.cell_size
+    compute_all_aabbs(buffers.bp, buffers.shapes, buffers.bodies, margin)
+    clear_history(buffers.history)

@@ -15,7 +15,7 @@ their order is that of the pair list: deterministic, with no atomics.
 import taichi as ti
 
 from .math3d import quat_mul, quat_rotate
-from .narrowphase import collide
+from .narrowphase import collide_kinds
 from .narrowphase.manifold import MAX_POINTS, ShapePose
 from .prefix_sum import Scanner, exclusive_scan
 from .shapes import PLANE
@@ -122,8 +122,11 @@ def partner_material(shapes: ti.template(), partner: ti.i32):
 
 @ti.kernel
 def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
-                  pool: ti.template(), margin: ti.f32):
-    """Narrowphase over every candidate pair, then pack the points and manifolds."""
+                  pool: ti.template(), margin: ti.f32, kinds: ti.template()):
+    """Narrowphase over every candidate pair, then pack the points and manifolds.
+
+    ``kinds`` (the shape kinds the scene contains, a static tuple) keeps routines
+    for absent kinds out of the compiled kernel (house rule 8)."""
     n_pairs = ti.min(bp.pair_total[None], bp.pair_capacity)
     for p in range(n_pairs):
         i = bp.pair_a[p]
@@ -135,7 +138,7 @@ def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bo
         else:
             b = shape_pose(shapes, bodies, j)
         pair_margin = ti.min(margin, 0.25 * ti.min(a.bound, b.bound))
-        m = collide(pool, a, b, pair_margin)
+        m = collide_kinds(pool, a, b, pair_margin, kinds)
         c.raw_count[p] = m.count
         c.has_points[p] = 1 if m.count > 0 else 0
         c.raw_normal[p] = m.normal

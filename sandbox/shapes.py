@@ -162,16 +162,15 @@ class PolytopePool:
     """All polytopes of a world in flat Taichi fields (structure of arrays).
 
     Indices stored in loops and edges are *global* (into ``vert`` / ``face_*``),
-    so a kernel needs only the polytope id to walk one polytope.
+    so a kernel needs only the polytope id to walk one polytope. Fields are
+    allocated for a capacity class and filled by ``upload`` (buffers.py reuses
+    pools across worlds so kernels are not recompiled).
     """
 
-    def __init__(self, polytopes: list[Polytope]):
-        n = max(1, len(polytopes))
-        nv = max(1, sum(len(p.vertices) for p in polytopes))
-        nf = max(1, sum(len(p.face_loops) for p in polytopes))
-        nl = max(1, sum(sum(len(l) for l in p.face_loops) for p in polytopes))
-        ne = max(1, sum(len(p.edges) for p in polytopes))
-        self.count = len(polytopes)
+    def __init__(self, polys: int, verts: int, faces: int, loops: int, edges: int):
+        n, nv, nf, nl, ne = (max(1, x) for x in (polys, verts, faces, loops, edges))
+        self.capacity = (polys, verts, faces, loops, edges)
+        self.count = 0
         self.vert_start = ti.field(ti.i32, n)
         self.vert_count = ti.field(ti.i32, n)
         self.face_start = ti.field(ti.i32, n)
@@ -187,13 +186,21 @@ class PolytopePool:
         self.loop = ti.field(ti.i32, nl)
         self.edge_vert = ti.Vector.field(2, ti.i32, ne)
         self.edge_face = ti.Vector.field(2, ti.i32, ne)
+
+    @staticmethod
+    def sizes(polytopes: list) -> tuple:
+        return (len(polytopes), sum(len(p.vertices) for p in polytopes), sum(len(p.face_loops) for p in polytopes),
+                sum(sum(len(l) for l in p.face_loops) for p in polytopes), sum(len(p.edges) for p in polytopes))
+
+    def upload(self, polytopes: list, first: int = 0, offsets: tuple = (0, 0, 0, 0)) -> tuple:
+        """Write ``polytopes`` from polytope id ``first`` on, their data from ``offsets``
+        (verts, faces, loops, edges). Returns the offsets after them, for appending."""
         if not polytopes:
-            return
-        vs, fs, ls, es = 0, 0, 0, 0
-        starts = np.zeros((len(polytopes), 6), dtype=np.int32)
-        verts, fn, fo, fls, flc, loops, ev, ef, cen = [], [], [], [], [], [], [], [], []
-        for i, p in enumerate(polytopes):
-            starts[i] = (vs, len(p.vertices), fs, len(p.face_loops), es, len(p.edges))
+            return offsets
+        vs, fs, ls, es = offsets
+        rows, verts, fn, fo, fls, flc, loops, ev, ef, cen = [], [], [], [], [], [], [], [], [], []
+        for p in polytopes:
+            rows.append((vs, len(p.vertices), fs, len(p.face_loops), es, len(p.edges)))
             verts.append(p.vertices)
             cen.append(p.centroid)
             fn.append(p.face_normals)
@@ -208,29 +215,31 @@ class PolytopePool:
             vs += len(p.vertices)
             fs += len(p.face_loops)
             es += len(p.edges)
-        self.vert_start.from_numpy(_pad(starts[:, 0], n))
-        self.vert_count.from_numpy(_pad(starts[:, 1], n))
-        self.face_start.from_numpy(_pad(starts[:, 2], n))
-        self.face_count.from_numpy(_pad(starts[:, 3], n))
-        self.edge_start.from_numpy(_pad(starts[:, 4], n))
-        self.edge_count.from_numpy(_pad(starts[:, 5], n))
-        self.centroid.from_numpy(_pad(np.asarray(cen, np.float32), n))
-        self.vert.from_numpy(np.concatenate(verts).astype(np.float32))
-        self.face_normal.from_numpy(np.concatenate(fn).astype(np.float32))
-        self.face_offset.from_numpy(np.concatenate(fo).astype(np.float32))
-        self.face_loop_start.from_numpy(np.asarray(fls, np.int32))
-        self.face_loop_count.from_numpy(np.asarray(flc, np.int32))
-        self.loop.from_numpy(np.concatenate(loops).astype(np.int32))
-        self.edge_vert.from_numpy(np.concatenate(ev).astype(np.int32))
-        self.edge_face.from_numpy(np.concatenate(ef).astype(np.int32))
+        rows = np.asarray(rows, np.int32)
+        _write(self.vert_start, first, rows[:, 0])
+        _write(self.vert_count, first, rows[:, 1])
+        _write(self.face_start, first, rows[:, 2])
+        _write(self.face_count, first, rows[:, 3])
+        _write(self.edge_start, first, rows[:, 4])
+        _write(self.edge_count, first, rows[:, 5])
+        _write(self.centroid, first, np.asarray(cen, np.float32))
+        _write(self.vert, offsets[0], np.concatenate(verts).astype(np.float32))
+        _write(self.face_normal, offsets[1], np.concatenate(fn).astype(np.float32))
+        _write(self.face_offset, offsets[1], np.concatenate(fo).astype(np.float32))
+        _write(self.face_loop_start, offsets[1], np.asarray(fls, np.int32))
+        _write(self.face_loop_count, offsets[1], np.asarray(flc, np.int32))
+        _write(self.loop, offsets[2], np.concatenate(loops).astype(np.int32))
+        _write(self.edge_vert, offsets[3], np.concatenate(ev).astype(np.int32))
+        _write(self.edge_face, offsets[3], np.concatenate(ef).astype(np.int32))
+        self.count = first + len(polytopes)
+        return (vs, fs, ls, es)
 
 
-def _pad(a: np.ndarray, n: int) -> np.ndarray:
-    if len(a) >= n:
-        return np.ascontiguousarray(a)
-    out = np.zeros((n,) + a.shape[1:], dtype=a.dtype)
-    out[: len(a)] = a
-    return out
+def _write(field, first: int, values: np.ndarray) -> None:
+    """Write rows ``first .. first+len(values)`` of a field, leaving the rest untouched."""
+    full = field.to_numpy()
+    full[first:first + len(values)] = values
+    field.from_numpy(full)
 
 
 @ti.data_oriented
@@ -272,19 +281,11 @@ class ShapeTable:
     def upload(self, arrays: dict[str, np.ndarray], planes: dict[str, np.ndarray], dynamic_ids: np.ndarray) -> None:
         n = len(arrays["kind"])
         for name, values in arrays.items():
-            field = getattr(self, name)
-            full = field.to_numpy()
-            full[:n] = values
-            field.from_numpy(full)
+            _write(getattr(self, name), 0, values)
         self.count[None] = n
-        ids = self.dynamic_ids.to_numpy()
-        ids[: len(dynamic_ids)] = dynamic_ids
-        self.dynamic_ids.from_numpy(ids)
+        _write(self.dynamic_ids, 0, dynamic_ids)
         self.dynamic_count[None] = len(dynamic_ids)
         m = len(planes["normal"])
         for name in ("normal", "offset", "body", "friction", "restitution"):
-            field = getattr(self, "plane_" + name)
-            full = field.to_numpy()
-            full[:m] = planes[name]
-            field.from_numpy(full)
+            _write(getattr(self, "plane_" + name), 0, planes[name])
         self.plane_count[None] = m

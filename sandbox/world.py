@@ -48,44 +48,30 @@ class World:
         self.gravity = np.asarray(scene.world.gravity, dtype=np.float32)
         self.profiler = Profiler(profile)
         self.step_count = 0
-        from .build import build_world_data
+        from .build import host_world
 
-        self._data = build_world_data(scene, self.settings)
+        self._host = host_world(scene, self.settings)
+        self.kinds = self._host.kinds
         self.body_count = len(scene.bodies)
-        self._make_buffers(self._data.initial_pair_capacity)
+        self._acquire(self._host.capacities())
         opts = dict(scene.solver.options)
         opts.update(solver_options)
         self.set_solver(solver or scene.solver.name, iterations=iterations or scene.solver.iterations, **opts)
 
     # ------------------------------------------------------------------ buffers
-    def _make_buffers(self, pair_capacity: int) -> None:
-        from .broadphase import Broadphase
-        from .contacts import Contacts
-        from .integrate import ErrorFlags
-        from .metrics import MetricBuffer
-        from .persistence import ContactHistory, clear_history
-        from .solvers.blocks import BlockScratch
-        from .solvers.pgs import Coloring
-        from .solvers.rows import Rows
+    def _acquire(self, caps) -> None:
+        from . import buffers
+        from .build import upload
 
-        d = self._data
-        shape_cap = d.shapes.capacity
-        body_cap = d.bodies.capacity
-        self.pair_capacity = pair_capacity
-        self.bp = Broadphase(shape_cap, d.entry_capacity, pair_capacity, d.static_grid)
-        self.bp.cell_size[None] = d.cell_size
-        from .broadphase import compute_all_aabbs
+        self.buf = buffers.acquire(caps)
+        self._finalizer = buffers.release_on_collect(self, self.buf)
+        upload(self._host, self.buf, self.settings.contact_margin)
 
-        compute_all_aabbs(self.bp, d.shapes, d.bodies, self.settings.contact_margin)
-        self.contacts = Contacts(pair_capacity, shape_cap)
-        cap = self.contacts.capacity
-        self.rows = Rows(cap)
-        self.history = ContactHistory(cap, shape_cap)
-        clear_history(self.history)
-        self.blocks = BlockScratch(cap, body_cap)
-        self.coloring = Coloring(pair_capacity, body_cap)
-        self.errors = ErrorFlags()
-        self.metric_buffer = MetricBuffer()
+    def close(self) -> None:
+        """Give the device buffers back to the process pool (also done when collected)."""
+        if getattr(self, "_finalizer", None) is not None:
+            self._finalizer()
+            self._finalizer = None
 
     # ------------------------------------------------------------------ solver
     def set_solver(self, name: str, iterations: int | None = None, **options) -> None:
@@ -112,33 +98,32 @@ class World:
         from .persistence import match_contacts, store_contacts
         from .solvers.rows import prepare_rows
 
-        d, s, p = self._data, self.settings, self.profiler
-        save_good_state(d.bodies)
-        self.errors.clear()
+        b, s, p = self.buf, self.settings, self.profiler
+        save_good_state(b.bodies)
+        b.errors.clear()
         with p.stage("integrate_velocities"):
-            integrate_velocities(d.bodies, ti.math.vec3(*self.gravity), h, True)
+            integrate_velocities(b.bodies, ti.math.vec3(*self.gravity), h, True)
         for attempt in range(MAX_GROWTH_RETRIES + 1):
             self._collide()
-            grown = self._grow_if_needed()
-            if not grown:
+            if not self._grow_if_needed():
                 break
-            restore_good_state(d.bodies)
-            integrate_velocities(d.bodies, ti.math.vec3(*self.gravity), h, True)
+            b = self.buf
+            integrate_velocities(b.bodies, ti.math.vec3(*self.gravity), h, True)
         else:
             raise CapacityError("contact buffers kept overflowing after growing; the scene is too dense")
         with p.stage("prepare"):
-            prepare_rows(self.rows, self.contacts, d.bodies, h, s.slop, s.baumgarte, s.max_push_speed,
+            prepare_rows(b.rows, b.contacts, b.bodies, h, s.slop, s.baumgarte, s.max_push_speed,
                          s.restitution_threshold)
-            match_contacts(self.history, self.contacts, self.rows, d.bodies, d.shapes, s.match_distance, s.warm_start)
+            match_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, s.match_distance, s.warm_start)
         with p.stage("solve"):
             self._solve()
-            store_contacts(self.history, self.contacts, self.rows, d.bodies, d.shapes)
+            store_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes)
         with p.stage("integrate_positions"):
-            integrate_positions(d.bodies, h, self.errors)
-        flags = int(self.errors.flags[None])
+            integrate_positions(b.bodies, h, b.errors)
+        flags = int(b.errors.flags[None])
         if flags:
-            body = int(self.errors.body[None])
-            restore_good_state(d.bodies)
+            body = int(b.errors.body[None])
+            restore_good_state(b.bodies)
             stage = "solve (velocity)" if flags & 1 else "integrate_positions (pose)"
             name = self.body_name(body)
             raise SimulationError(
@@ -150,25 +135,32 @@ class World:
         from .broadphase import build_dynamic_grid, find_pairs
         from .contacts import collide_pairs
 
-        d, p = self._data, self.profiler
+        b, p, margin = self.buf, self.profiler, self.settings.contact_margin
         with p.stage("broadphase"):
-            build_dynamic_grid(self.bp, d.shapes, d.bodies, self.settings.contact_margin)
-            find_pairs(self.bp, d.shapes)
+            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin)
+            find_pairs(b.bp, b.shapes)
         with p.stage("narrowphase"):
-            collide_pairs(self.contacts, self.bp, d.shapes, d.bodies, d.pool, self.settings.contact_margin)
+            collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, margin, self.kinds)
 
     def _grow_if_needed(self) -> bool:
-        entries = int(self.bp.entry_total[None])
-        pairs = int(self.bp.pair_total[None])
-        grown = False
-        if entries > self.bp.entry_capacity:
-            self._data.entry_capacity = 2 * entries
-            grown = True
-        if pairs > self.pair_capacity:
-            grown = True
-        if grown:
-            self._make_buffers(max(self.pair_capacity, 2 * pairs))
-        return grown
+        """After an overflow: move to a bigger buffer class, keeping the body state, and say so."""
+        from .bodies import restore_good_state
+
+        b = self.buf
+        entries = int(b.bp.entry_total[None])
+        pairs = int(b.bp.pair_total[None])
+        if entries <= b.bp.entry_capacity and pairs <= b.bp.pair_capacity:
+            return False
+        restore_good_state(b.bodies)
+        state = {k: f.to_numpy() for k, f in (("pos", b.bodies.pos), ("rot", b.bodies.rot),
+                                              ("lin_vel", b.bodies.lin_vel), ("ang_vel", b.bodies.ang_vel))}
+        n = len(self._host.body_arrays["inv_mass"])
+        for k, v in state.items():
+            self._host.body_arrays[k] = v[:n]
+        caps = b.caps.grown(grid_entries=max(b.caps.grid_entries, 2 * entries), pairs=max(b.caps.pairs, 2 * pairs))
+        self.close()
+        self._acquire(caps)
+        return True
 
     def _solve(self) -> None:
         from .solvers import blocks, pgs
@@ -178,7 +170,7 @@ class World:
         split = name in ("mass-splitting", "block-mass-splitting")
         omega = self.solver_options.get("relaxation") or self.settings.jacobi_relaxation
         mode = blocks.MODE_SPLIT if split else blocks.MODE_JACOBI
-        b, rows, c, bodies = self.blocks, self.rows, self.contacts, self._data.bodies
+        b, rows, c, bodies = self.buf.blocks, self.buf.rows, self.buf.contacts, self.buf.bodies
         blocks.build_adjacency(b, c, bodies, kind, mode, float(omega))
         if self.settings.warm_start > 0.0:
             blocks.warm_start(b, rows, c, bodies, kind)
@@ -186,15 +178,16 @@ class World:
             pgs.pgs_serial(rows, c, bodies, it)
         elif name == "pgs-colored":
             o = self.solver_options
-            pgs.color_manifolds(self.coloring, c, bodies, int(o["shuffle"]), int(o["seed"]), self.step_count)
-            starts = self.coloring.color_start.to_numpy()
-            n_colors = int(self.coloring.color_count[None])
+            col = self.buf.coloring
+            pgs.color_manifolds(col, c, bodies, int(o["shuffle"]), int(o["seed"]), self.step_count)
+            starts = col.color_start.to_numpy()
+            n_colors = int(col.color_count[None])
             self.last_color_count = n_colors
             for _ in range(it):
                 for k in range(n_colors):
-                    pgs.solve_color(rows, c, bodies, self.coloring, int(starts[k]), int(starts[k + 1]))
+                    pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]))
                 if starts[pgs.MAX_COLORS + 1] > starts[pgs.MAX_COLORS]:
-                    pgs.solve_overflow(rows, c, bodies, self.coloring, int(starts[pgs.MAX_COLORS]),
+                    pgs.solve_overflow(rows, c, bodies, col, int(starts[pgs.MAX_COLORS]),
                                        int(starts[pgs.MAX_COLORS + 1]))
         else:
             for _ in range(it):
@@ -210,17 +203,18 @@ class World:
         """Body state as numpy arrays, one row per scene body: position (N,3) [m, centre of
         mass], orientation (N,4) [w, x, y, z], linear_velocity (N,3) [m/s], angular_velocity
         (N,3) [rad/s, world frame]."""
-        st = self._data.bodies.state_numpy()
+        st = self.buf.bodies.state_numpy()
         return {k: v[: self.body_count].copy() for k, v in st.items()}
 
     def metrics(self) -> dict[str, float]:
         from .metrics import KE, MAX_PEN, RES_MAX_SQ, RES_SQ_SUM, SUM_PEN, compute_metrics
         from .solvers.rows import compute_residuals
 
-        compute_residuals(self.rows, self.contacts, self._data.bodies)
-        compute_metrics(self.metric_buffer, self._data.bodies, self.contacts, self.rows)
-        v = self.metric_buffer.values.to_numpy().astype(np.float64)
-        n = int(self.contacts.count[None])
+        b = self.buf
+        compute_residuals(b.rows, b.contacts, b.bodies)
+        compute_metrics(b.metrics, b.bodies, b.contacts, b.rows)
+        v = b.metrics.values.to_numpy().astype(np.float64)
+        n = int(b.contacts.count[None])
         out = {
             "step": self.step_count,
             "time": self.step_count * self.dt,
@@ -228,13 +222,28 @@ class World:
             "max_penetration": float(v[MAX_PEN]),
             "mean_penetration": float(v[SUM_PEN] / n) if n else 0.0,
             "contacts": n,
-            "manifolds": int(self.contacts.manifold_count[None]),
+            "manifolds": int(b.contacts.manifold_count[None]),
             "residual_rms": float(np.sqrt(v[RES_SQ_SUM] / (3 * n))) if n else 0.0,
             "residual_max": float(np.sqrt(v[RES_MAX_SQ])),
         }
         if self.solver == "pgs-colored":
             out["colors"] = int(getattr(self, "last_color_count", 0))
         return out
+
+    def contacts(self) -> dict[str, np.ndarray]:
+        """This step's contact points: body_a, body_b, point (world) [m], normal (a to b),
+        separation [m], impulse (normal, tangent1, tangent2) [N s] and manifold index."""
+        c, r = self.buf.contacts, self.buf.rows
+        n = int(c.count[None])
+        return {
+            "body_a": c.body_a.to_numpy()[:n],
+            "body_b": c.body_b.to_numpy()[:n],
+            "point": c.point.to_numpy()[:n],
+            "normal": c.normal.to_numpy()[:n],
+            "separation": c.sep.to_numpy()[:n],
+            "impulse": r.lam.to_numpy()[:n],
+            "manifold": c.manifold.to_numpy()[:n],
+        }
 
     def timing_ms(self) -> dict[str, float]:
         return self.profiler.mean_ms()

@@ -1,0 +1,71 @@
+"""Per-stage cost of a step, for every solver, on the shipped pyramid and 1000-box pile.
+
+    python benchmarks/step_bench.py [--scenes pyramid_20,pile_1000] [--solvers ...]
+                                    [--iterations 15] [--settle 120] [--steps 120] [--arch cpu]
+
+Protocol: build the world, run ``--settle`` steps (compiles every kernel and lets
+the scene reach a representative contact count), then time ``--steps`` steps
+twice: once with per-stage device syncs (ms/step by stage) and once without
+(whole-step wall time -> steps/s, the number to compare with other engines).
+ms/iteration = solve stage / iterations. Compile time is reported apart.
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import time
+
+from sandbox import SOLVERS, Scene, World
+
+
+def bench(scene_name: str, solver: str, iterations: int, settle: int, steps: int, arch: str) -> dict:
+    scene = Scene.load(f"scenes/{scene_name}.toml")
+    t0 = time.perf_counter()
+    world = World(scene, solver=solver, iterations=iterations, arch=arch, profile=False)
+    world.step(1)
+    compile_s = time.perf_counter() - t0
+    world.step(settle - 1)
+    world.profiler.enabled = True
+    world.profiler.reset()
+    world.step(steps)
+    stages = world.timing_ms()
+    world.profiler.enabled = False
+    import taichi as ti
+
+    ti.sync()
+    t = time.perf_counter()
+    world.step(steps)
+    ti.sync()
+    wall = time.perf_counter() - t
+    m = world.metrics()
+    return {"scene": scene_name, "solver": solver, "iterations": iterations, "bodies": world.body_count,
+            "contacts": m["contacts"], "stages": stages, "ms_per_step": 1e3 * wall / steps,
+            "steps_per_s": steps / wall, "compile_s": compile_s, "ke": m["kinetic_energy"]}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenes", default="pyramid_20,pile_1000")
+    ap.add_argument("--solvers", default=",".join(SOLVERS))
+    ap.add_argument("--iterations", type=int, default=15)
+    ap.add_argument("--settle", type=int, default=120)
+    ap.add_argument("--steps", type=int, default=120)
+    ap.add_argument("--arch", default="cpu")
+    a = ap.parse_args()
+    print(f"# {platform.processor() or platform.machine()}, {platform.python_version()}, arch={a.arch}, "
+          f"iterations={a.iterations}, settle={a.settle}, timed steps={a.steps}")
+    hdr = (f"{'scene':12s} {'solver':22s} {'bodies':>6s} {'contacts':>8s} {'collide':>8s} {'prepare':>8s} "
+           f"{'solve':>8s} {'integr':>7s} {'ms/iter':>8s} {'ms/step':>8s} {'steps/s':>8s} {'compile s':>9s}")
+    print(hdr)
+    for scene in a.scenes.split(","):
+        for solver in a.solvers.split(","):
+            r = bench(scene, solver, a.iterations, a.settle, a.steps, a.arch)
+            s = r["stages"]
+            print(f"{scene:12s} {solver:22s} {r['bodies']:6d} {r['contacts']:8d} {s['collide']:8.2f} "
+                  f"{s['prepare']:8.2f} {s['solve']:8.2f} {s['integrate']:7.2f} {s['solve'] / a.iterations:8.3f} "
+                  f"{r['ms_per_step']:8.2f} {r['steps_per_s']:8.1f} {r['compile_s']:9.1f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,493 @@
+"""Scene loading: a TOML file or a dict -> a validated, fully expanded ``Scene``.
+
+The schema (every key, its type, unit, default and range) is documented for
+users in ``scenes/README.md``; this module is its executable form. Validation is
+strict: an unknown key, a wrong type, a missing required key, a non-positive
+size, mass, density or dt, NaN or inf, an unreadable mesh file, a degenerate
+hull, an unknown shape / solver / generator kind or a duplicate name raises one
+``SceneError`` naming the source, the entry (``body[3].half_extents``) and the
+problem. Nothing is silently defaulted or clamped; defaults exist only for keys
+that are documented as optional.
+
+Order of ``Scene.bodies``: the ``[[body]]`` entries in file order, then the
+expansion of each ``[[generate]]`` entry in order, then the convex bodies of
+``[[static]]`` entries in order (so body indices of a scene without static
+convex bodies match the anchors' ``scenes.json`` listing).
+
+Centre of mass: a body's ``position`` in the file is the origin of its shape
+frame (the frame its hull vertices or compound parts are written in). The
+loader computes the centre of mass c in that frame, moves every shape by -c
+(``ShapeSpec.local_position``) and stores position + R c in ``BodySpec.position``,
+which is therefore the centre of mass. Box, sphere and capsule bodies have c = 0.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import tomllib
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import SceneError
+from . import generators, terrain
+from .hull import HullError, hull_vertices, reduce_to_hull
+from .massprops import body_mass_properties
+from .rotations import quat_to_matrix
+from .schema import Context, Reader
+from .spec import BodySpec, MeshSpec, PlaneSpec, Scene, ShapeSpec, SolverSpec, WorldSpec
+
+SOLVER_NAMES = ("pgs", "pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting")
+SOLVER_OPTIONS = {
+    "pgs": (),
+    "pgs-colored": ("shuffle", "seed"),
+    "jacobi": ("relaxation",),
+    "mass-splitting": (),
+    "block-mass-splitting": (),
+}
+"""Options each solver takes; mirrors ``sandbox.solvers.SOLVERS[name].defaults`` (a test keeps them
+equal) so a misplaced option fails at load time with its entry, not later in ``World``."""
+GENERATOR_KINDS = ("stack", "pyramid", "grid")
+PART_SHAPES = ("box", "sphere", "capsule", "hull")
+SOLID_SHAPES = PART_SHAPES + ("compound",)
+STATIC_SHAPES = ("plane", "mesh") + SOLID_SHAPES
+
+DEFAULT_DENSITY = 1000.0  # [kg/m^3]
+DEFAULT_FRICTION = 0.5
+DEFAULT_RESTITUTION = 0.0
+MAX_BODIES = 1_000_000
+"""Sanity limit on the bodies of one scene (catches a typo such as count = 1e9 before memory runs out)."""
+MAX_HEIGHTFIELD_CELLS = 2048
+"""Per axis; 2048 x 2048 cells is 8.4 million triangles."""
+
+TOP_KEYS = ("description", "world", "solver", "static", "body", "generate")
+WORLD_KEYS = ("gravity", "dt", "substeps")
+SOLVER_KEYS = ("name", "iterations", "shuffle", "relaxation", "seed")
+SHAPE_KEYS = {
+    "box": ("half_extents",),
+    "sphere": ("radius",),
+    "capsule": ("radius", "half_height"),
+    "hull": ("vertices", "path", "scale"),
+    "compound": ("parts",),
+}
+SHAPE_REQUIRED = {"box": ("half_extents",), "sphere": ("radius",), "capsule": ("radius", "half_height"),
+                  "hull": (), "compound": ("parts",)}
+BODY_KEYS = ("shape", "position", "orientation", "linear_velocity", "angular_velocity", "density", "mass",
+             "friction", "restitution", "name", "static")
+STATIC_SOLID_KEYS = ("shape", "position", "orientation", "friction", "restitution", "name")
+PART_KEYS = ("shape", "position", "orientation", "density")
+PLANE_KEYS = ("shape", "normal", "offset", "friction", "restitution")
+MESH_KEYS = ("shape", "path", "heightfield", "position", "orientation", "scale", "friction", "restitution", "name")
+HEIGHTFIELD_KEYS = {
+    "sines": ("function", "amplitude", "frequency", "size", "cells"),
+    "noise": ("function", "amplitude", "size", "cells", "seed", "smoothing"),
+}
+HEIGHTFIELD_REQUIRED = {"sines": ("amplitude", "size", "cells"), "noise": ("amplitude", "size", "cells", "seed")}
+MATERIAL_KEYS = ("density", "mass", "friction", "restitution", "name")
+GENERATOR_KEYS = {
+    "stack": ("kind", "count", "half_extents", "size", "position", "gap", "jitter", "seed") + MATERIAL_KEYS,
+    "pyramid": ("kind", "base", "half_extents", "size", "position", "gap", "layout") + MATERIAL_KEYS,
+    "grid": ("kind", "counts", "spacing", "origin", "shapes", "weights", "half_extents", "half_extent_range",
+             "orientation", "seed") + MATERIAL_KEYS,
+}
+GENERATOR_REQUIRED = {"stack": ("count", "position"), "pyramid": ("base", "position"),
+                      "grid": ("counts", "spacing", "origin")}
+
+
+# ---------------------------------------------------------------------------- entry points
+def load_scene(path) -> Scene:
+    """Load and validate a TOML scene file; the error source is ``path``."""
+    source = str(path)
+    try:
+        file = Path(path)
+    except TypeError:
+        raise SceneError(f"scene path must be a string or path, got {type(path).__name__}", source=source) from None
+    try:
+        raw = file.read_bytes()
+    except FileNotFoundError:
+        raise SceneError("scene file not found", source=source) from None
+    except IsADirectoryError:
+        raise SceneError("scene path is a directory, not a file", source=source) from None
+    except OSError as exc:
+        raise SceneError(f"cannot read scene file: {exc.strerror or exc}", source=source) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"scene file is not UTF-8 text (bad byte at offset {exc.start})", source=source) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        msg = str(exc)
+        where = re.search(r"at line (\d+), column (\d+)", msg)
+        entry = f"line {where.group(1)}, column {where.group(2)}" if where else None
+        problem = re.sub(r"\s*\(at line \d+, column \d+\)", "", msg) if where else msg
+        raise SceneError(f"TOML syntax error: {problem}", source=source, entry=entry) from None
+    return scene_from_dict(data, source=source, base_dir=file.parent)
+
+
+def scene_from_dict(data, source: str = "<dict>", base_dir=None) -> Scene:
+    """Validate and expand a scene given as a dict with the TOML file's structure.
+
+    Relative mesh paths resolve against ``base_dir`` (the current directory when None).
+    """
+    try:
+        base = Path(base_dir) if base_dir is not None else Path.cwd()
+    except TypeError:
+        raise SceneError(f"base_dir must be a path, got {type(base_dir).__name__}", source=str(source)) from None
+    ctx = Context(source=str(source), base_dir=base)
+    # extreme but finite inputs (1e308) may overflow in arithmetic; every derived value is checked
+    # for finiteness explicitly, so numpy's warnings would only be noise
+    with np.errstate(all="ignore"):
+        return _build(data, ctx)
+
+
+def _build(data, ctx: Context) -> Scene:
+    top = Reader(data, "", ctx)
+    top.check_keys(TOP_KEYS, what="the top level")
+    scene = Scene(source=ctx.source, description=top.string("description", ""))
+    scene.world = _read_world(top.table("world", None))
+    scene.solver = _read_solver(top.table("solver", None))
+    names: dict[str, str] = {}
+    for r in top.tables("body"):
+        body = _read_solid(r, static_section=False)
+        _claim_name(names, body.name, r, "name")
+        scene.bodies.append(body)
+    for r in top.tables("generate"):
+        bodies = _read_generator(r, budget=MAX_BODIES - len(scene.bodies))
+        for body in bodies:
+            _claim_name(names, body.name, r, "name")
+        scene.bodies.extend(bodies)
+    for r in top.tables("static"):
+        kind = r.string("shape", choices=STATIC_SHAPES, what="static shape")
+        if kind == "plane":
+            scene.planes.append(_read_plane(r))
+        elif kind == "mesh":
+            mesh = _read_mesh(r)
+            _claim_name(names, mesh.name, r, "name")
+            scene.meshes.append(mesh)
+        else:
+            body = _read_solid(r, static_section=True)
+            _claim_name(names, body.name, r, "name")
+            scene.bodies.append(body)
+    if len(scene.bodies) > MAX_BODIES:
+        raise SceneError(f"scene has {len(scene.bodies)} bodies; at most {MAX_BODIES} are supported", source=ctx.source)
+    return scene
+
+
+def _claim_name(names: dict, name, r: Reader, key: str) -> None:
+    if name is None:
+        return
+    if name in names:
+        raise r.error(f"duplicate name {name!r} (already used by {names[name]})", key)
+    names[name] = r.entry
+
+
+# ---------------------------------------------------------------------------- world, solver
+def _read_world(r: Reader | None) -> WorldSpec:
+    if r is None:
+        return WorldSpec()
+    r.check_keys(WORLD_KEYS, what="[world]")
+    return WorldSpec(
+        gravity=r.vector("gravity", 3, (0.0, 0.0, -9.81)),
+        dt=r.real("dt", 1.0 / 60.0, positive=True),
+        substeps=r.integer("substeps", 1, minimum=1, maximum=10_000),
+    )
+
+
+def _read_solver(r: Reader | None) -> SolverSpec:
+    if r is None:
+        return SolverSpec()
+    r.check_keys(SOLVER_KEYS, what="[solver]")
+    name = r.string("name", "pgs", choices=SOLVER_NAMES, what="solver")
+    for key in ("shuffle", "relaxation", "seed"):
+        if r.has(key) and key not in SOLVER_OPTIONS[name]:
+            takes = ", ".join(SOLVER_OPTIONS[name]) or "no options"
+            raise r.error(f"option '{key}' does not apply to solver '{name}' (it takes: {takes})", key)
+    options = {}
+    if r.has("shuffle"):
+        options["shuffle"] = r.boolean("shuffle")
+    if r.has("relaxation"):
+        options["relaxation"] = r.real("relaxation", low=0.0, high=2.0, open_low=True, open_high=True)
+    if r.has("seed"):
+        options["seed"] = r.integer("seed", minimum=0)
+    return SolverSpec(
+        name=name,
+        iterations=r.integer("iterations", 10, minimum=1, maximum=1_000_000),
+        options=options,
+    )
+
+
+# ---------------------------------------------------------------------------- shapes and bodies
+def _load_mesh_file(r: Reader, key: str) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) of a mesh file read with trimesh (force='mesh'), cached per load."""
+    path = r.file(key)
+    cached = r.ctx.cache.get(path.resolve())
+    if cached is not None:
+        return cached
+    try:
+        import trimesh
+
+        mesh = trimesh.load(str(path), force="mesh")
+        vertices = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
+        faces = np.asarray(getattr(mesh, "faces", np.empty((0, 3))), dtype=np.int64)
+    except Exception as exc:  # noqa: BLE001 -- any failure inside trimesh's readers is a bad file
+        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
+        raise r.error(f"cannot read mesh file {path}: {type(exc).__name__}{': ' + detail if detail else ''}", key) from None
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0 or vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise r.error(f"mesh file {path} contains no triangles", key)
+    if not np.all(np.isfinite(vertices)):
+        raise r.error(f"mesh file {path} has NaN or inf vertex coordinates", key)
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise r.error(f"mesh file {path} has triangle indices out of range", key)
+    r.ctx.cache[path.resolve()] = (vertices, faces)
+    return vertices, faces
+
+
+def _read_shape(r: Reader, kind: str) -> ShapeSpec:
+    """One convex shape in its own frame (the caller sets the local pose)."""
+    if kind == "box":
+        return ShapeSpec("box", half_extents=r.vector("half_extents", 3, positive=True))
+    if kind == "sphere":
+        return ShapeSpec("sphere", radius=r.real("radius", positive=True))
+    if kind == "capsule":
+        return ShapeSpec("capsule", radius=r.real("radius", positive=True),
+                         half_height=r.real("half_height", positive=True))
+    # hull
+    source = r.exclusive("vertices", "path")
+    scale = r.scalar_or_vector("scale", 3, 1.0, positive=True)
+    with np.errstate(all="ignore"):
+        try:
+            if source == "vertices":
+                points = r.points("vertices") * scale
+                if not np.all(np.isfinite(points)):
+                    raise HullError("scaled hull vertices overflow")
+                vertices = hull_vertices(points)
+            else:
+                mesh_vertices, _ = _load_mesh_file(r, "path")
+                vertices, _ = reduce_to_hull(mesh_vertices * scale)
+        except HullError as exc:
+            raise r.error(str(exc), source) from None
+    return ShapeSpec("hull", vertices=vertices)
+
+
+def _read_solid(r: Reader, *, static_section: bool) -> BodySpec:
+    """A ``[[body]]`` entry, or a convex ``[[static]]`` entry (box/sphere/capsule/hull/compound)."""
+    kind = r.string("shape", choices=SOLID_SHAPES, what="shape")
+    base = STATIC_SOLID_KEYS if static_section else BODY_KEYS
+    r.check_keys(base + SHAPE_KEYS[kind], required=("position",) + SHAPE_REQUIRED[kind],
+                 what=f"a {'static ' if static_section else ''}{kind}")
+    if kind == "compound":
+        parts = r.tables("parts")
+        if not parts:
+            raise r.error("a compound needs at least one part", "parts")
+        shapes, densities = [], []
+        for p in parts:
+            pk = p.string("shape", choices=PART_SHAPES, what="compound part shape")
+            p.check_keys(PART_KEYS + SHAPE_KEYS[pk], required=SHAPE_REQUIRED[pk], what=f"a {pk} part")
+            shape = _read_shape(p, pk)
+            shape.local_position = p.vector("position", 3, (0.0, 0.0, 0.0))
+            shape.local_orientation = p.quaternion("orientation")
+            shapes.append(shape)
+            densities.append(p.real("density", None, positive=True))
+    else:
+        shapes, densities = [_read_shape(r, kind)], [None]
+    position = r.vector("position", 3)
+    orientation = r.quaternion("orientation")
+    static = static_section or r.boolean("static", False)
+    r.exclusive("density", "mass", required=False)
+    density = r.real("density", DEFAULT_DENSITY, positive=True) if not static_section else DEFAULT_DENSITY
+    mass = r.real("mass", None, positive=True) if not static_section else None
+    linear_velocity = r.vector("linear_velocity", 3, (0.0, 0.0, 0.0)) if not static_section else np.zeros(3)
+    angular_velocity = r.vector("angular_velocity", 3, (0.0, 0.0, 0.0)) if not static_section else np.zeros(3)
+    if static and (np.any(linear_velocity) or np.any(angular_velocity)):
+        key = "linear_velocity" if np.any(linear_velocity) else "angular_velocity"
+        raise r.error("a static body cannot move; remove the velocity or set static = false", key)
+    with np.errstate(all="ignore"):
+        mp = body_mass_properties(shapes, [d if d is not None else density for d in densities])
+        if not (math.isfinite(mp.mass) and mp.mass > 0 and np.all(np.isfinite(mp.inertia))):
+            raise r.error(f"mass properties are not finite and positive (mass {mp.mass:g} kg); check sizes and density")
+        if mass is not None:
+            mp = mp.scaled(mass / mp.mass)
+        for shape in shapes:
+            shape.local_position = shape.local_position - mp.com
+        com_world = position + quat_to_matrix(orientation) @ mp.com
+        if not (np.all(np.isfinite(com_world)) and np.all(np.isfinite(mp.inertia)) and math.isfinite(mp.mass)):
+            raise r.error("position or mass properties overflow to inf")
+    name = r.string("name", None)
+    if name is not None and not name:
+        raise r.error("a name must not be empty", "name")
+    return BodySpec(
+        shapes=shapes,
+        position=com_world,
+        orientation=orientation,
+        linear_velocity=linear_velocity,
+        angular_velocity=angular_velocity,
+        mass=float(mp.mass),
+        inertia=mp.inertia,
+        static=static,
+        friction=r.real("friction", DEFAULT_FRICTION, nonnegative=True),
+        restitution=r.real("restitution", DEFAULT_RESTITUTION, low=0.0, high=1.0),
+        name=name,
+    )
+
+
+# ---------------------------------------------------------------------------- static planes and meshes
+def _read_plane(r: Reader) -> PlaneSpec:
+    r.check_keys(PLANE_KEYS, required=("normal",), what="a static plane")
+    normal = r.vector("normal", 3, nonzero=True)
+    return PlaneSpec(
+        normal=normal / np.linalg.norm(normal),
+        offset=r.real("offset", 0.0),
+        friction=r.real("friction", DEFAULT_FRICTION, nonnegative=True),
+        restitution=r.real("restitution", DEFAULT_RESTITUTION, low=0.0, high=1.0),
+    )
+
+
+def _read_heightfield(r: Reader) -> tuple[np.ndarray, np.ndarray]:
+    function = r.string("function", choices=terrain.FUNCTIONS, what="height-field function")
+    r.check_keys(HEIGHTFIELD_KEYS[function], required=HEIGHTFIELD_REQUIRED[function], what=f"a '{function}' height field")
+    size = r.vector("size", 2, positive=True)
+    cells = r.int_vector("cells", 2, minimum=1, maximum=MAX_HEIGHTFIELD_CELLS)
+    amplitude = r.real("amplitude", nonnegative=True)
+    if function == "sines":
+        vertices, triangles = terrain.heightfield("sines", size=size, cells=cells, amplitude=amplitude,
+                                                  frequency=r.scalar_or_vector("frequency", 2, 1.0))
+    else:
+        vertices, triangles = terrain.heightfield("noise", size=size, cells=cells, amplitude=amplitude,
+                                                  seed=r.integer("seed", minimum=0),
+                                                  smoothing=r.integer("smoothing", 2, minimum=0, maximum=64))
+    if not np.all(np.isfinite(vertices)):
+        raise r.error("height-field vertices are not finite; check size, amplitude and frequency")
+    return vertices, triangles
+
+
+def _read_mesh(r: Reader) -> MeshSpec:
+    r.check_keys(MESH_KEYS, what="a static mesh")
+    source = r.exclusive("path", "heightfield")
+    position = r.vector("position", 3, (0.0, 0.0, 0.0))
+    orientation = r.quaternion("orientation")
+    scale = r.scalar_or_vector("scale", 3, 1.0, positive=True)
+    if source == "path":
+        vertices, triangles = _load_mesh_file(r, "path")
+    else:
+        vertices, triangles = _read_heightfield(r.table("heightfield"))
+    with np.errstate(all="ignore"):
+        vertices = (vertices * scale) @ quat_to_matrix(orientation).T + position
+    if not np.all(np.isfinite(vertices)):
+        raise r.error("mesh vertices overflow to inf after scale and position")
+    name = r.string("name", None)
+    if name is not None and not name:
+        raise r.error("a name must not be empty", "name")
+    return MeshSpec(
+        vertices=vertices,
+        triangles=np.ascontiguousarray(triangles, dtype=np.int64),
+        friction=r.real("friction", DEFAULT_FRICTION, nonnegative=True),
+        restitution=r.real("restitution", DEFAULT_RESTITUTION, low=0.0, high=1.0),
+        name=name,
+    )
+
+
+# ---------------------------------------------------------------------------- generators
+def _read_material(r: Reader) -> generators.Material:
+    r.exclusive("density", "mass", required=False)
+    name = r.string("name", None)
+    if name is not None and not name:
+        raise r.error("a name prefix must not be empty", "name")
+    return generators.Material(
+        density=r.real("density", DEFAULT_DENSITY, positive=True),
+        mass=r.real("mass", None, positive=True),
+        friction=r.real("friction", DEFAULT_FRICTION, nonnegative=True),
+        restitution=r.real("restitution", DEFAULT_RESTITUTION, low=0.0, high=1.0),
+        name=name,
+    )
+
+
+def _read_box_size(r: Reader) -> np.ndarray:
+    key = r.exclusive("half_extents", "size")
+    v = r.scalar_or_vector(key, 3, positive=True)
+    return v if key == "half_extents" else v / 2.0
+
+
+def _need_seed(r: Reader, why: str) -> int:
+    if not r.has("seed"):
+        raise r.error(f"missing required key 'seed' ({why} draws random numbers)", "seed")
+    return r.integer("seed", minimum=0)
+
+
+def _check_budget(r: Reader, key: str, count: int, budget: int) -> None:
+    if count > budget:
+        raise r.error(f"would generate {count} bodies; a scene holds at most {MAX_BODIES}", key)
+
+
+def _read_generator(r: Reader, *, budget: int) -> list[BodySpec]:
+    kind = r.string("kind", choices=GENERATOR_KINDS, what="generator kind")
+    r.check_keys(GENERATOR_KEYS[kind], required=("kind",) + GENERATOR_REQUIRED[kind], what=f"a '{kind}' generator")
+    material = _read_material(r)
+    try:
+        with np.errstate(all="ignore"):
+            bodies = _expand(r, kind, material, budget)
+    except generators.GeneratorError as exc:
+        raise r.error(str(exc)) from None
+    except HullError as exc:
+        raise r.error(f"a generated hull is invalid: {exc}") from None
+    for body in bodies:
+        if not (np.all(np.isfinite(body.position)) and math.isfinite(body.mass) and body.mass > 0
+                and np.all(np.isfinite(body.inertia))):
+            raise r.error("generated positions or mass properties are not finite and positive; check sizes, "
+                          "spacing and density")
+    return bodies
+
+
+def _expand(r: Reader, kind: str, material: generators.Material, budget: int) -> list[BodySpec]:
+    if kind == "stack":
+        count = r.integer("count", minimum=1)
+        _check_budget(r, "count", count, budget)
+        half = _read_box_size(r)
+        jitter = r.real("jitter", 0.0, nonnegative=True)
+        seed = _need_seed(r, "jitter > 0") if jitter > 0 else r.integer("seed", None, minimum=0)
+        return generators.stack(count, half, r.vector("position", 3), gap=r.real("gap", 0.0, nonnegative=True),
+                                jitter=jitter, seed=seed, material=material)
+    if kind == "pyramid":
+        base = r.integer("base", minimum=1)
+        layout = r.string("layout", "2d", choices=("2d", "3d"), what="pyramid layout")
+        _check_budget(r, "base", generators.pyramid_count(min(base, 10**7), layout), budget)
+        return generators.pyramid(base, _read_box_size(r), r.vector("position", 3),
+                                  gap=r.real("gap", 0.0, nonnegative=True), layout=layout, material=material)
+    # grid
+    counts = r.int_vector("counts", 3, minimum=1)
+    _check_budget(r, "counts", int(np.prod([min(int(c), 10**7) for c in counts])), budget)
+    spacing = r.scalar_or_vector("spacing", 3, positive=True)
+    origin = r.vector("origin", 3)
+    shapes = r.choice_list("shapes", generators.GRID_SHAPES, what="grid shape") if r.has("shapes") else ["box"]
+    weights = None
+    if r.has("weights"):
+        if len(shapes) < 2:
+            raise r.error("weights need at least two entries in 'shapes'", "weights")
+        weights = r.vector("weights", len(shapes), nonnegative=True)
+        if not weights.sum() > 0:
+            raise r.error("weights must not all be zero", "weights")
+    size_key = r.exclusive("half_extents", "half_extent_range")
+    half_extents = half_range = None
+    if size_key == "half_extents":
+        half_extents = r.scalar_or_vector("half_extents", 3, positive=True)
+    else:
+        half_range = r.vector("half_extent_range", 2, positive=True)
+        if half_range[0] > half_range[1]:
+            raise r.error(f"expected [low, high] with low <= high, got {half_range.tolist()}", "half_extent_range")
+    orientation = "identity"
+    if r.has("orientation"):
+        if isinstance(r.data["orientation"], str):
+            orientation = r.string("orientation", choices=("identity", "random"), what="grid orientation")
+        else:
+            orientation = r.quaternion("orientation")
+    random_reasons = [why for why, used in (("more than one shape", len(shapes) > 1),
+                                            ("half_extent_range", half_range is not None),
+                                            ("orientation = 'random'", isinstance(orientation, str) and orientation == "random"),
+                                            ("a hull shape", "hull" in shapes)) if used]
+    seed = _need_seed(r, random_reasons[0]) if random_reasons else r.integer("seed", None, minimum=0)
+    return generators.grid(counts, spacing, origin, shapes=shapes, weights=weights, half_extents=half_extents,
+                           half_extent_range=half_range, orientation=orientation, seed=seed, material=material)
+
+
+__all__ = ["load_scene", "scene_from_dict", "SOLVER_NAMES", "SOLVER_OPTIONS", "GENERATOR_KINDS", "MAX_BODIES"]

@@ -1,0 +1,36 @@
+"""Shared fixtures: Taichi runs once per test process, on the CPU (CI has no GPU)."""
+
+import os
+
+import pytest
+
+os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def taichi_cpu():
+    from sandbox import backend
+
+    return backend.init(os.environ.get("SANDBOX_TEST_ARCH", "cpu"))
+
+
+def box_body(position, half=(0.5, 0.5, 0.5), mass=None, density=1000.0, **extra):
+    body = {"shape": "box", "half_extents": list(half), "position": list(position), **extra}
+    if mass is not None:
+        body["mass"] = mass
+    else:
+        body["density"] = density
+    return body
+
+
+def plane(normal=(0.0, 0.0, 1.0), offset=0.0, friction=0.5):
+    return {"shape": "plane", "normal": list(normal), "offset": offset, "friction": friction}
+
+
+def scene_dict(bodies, statics=(plane(),), gravity=(0.0, 0.0, -9.81), dt=1.0 / 60.0, solver="pgs", iterations=10):
+    return {
+        "world": {"gravity": list(gravity), "dt": dt, "substeps": 1},
+        "solver": {"name": solver, "iterations": iterations},
+        "static": list(statics),
+        "body": list(bodies),
+    }
