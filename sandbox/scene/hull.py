@@ -1,12 +1,7 @@
 """Convex hulls for scene loading: validation, and reduction of big meshes to a small hull.
 
-Why this is not simply ``sandbox.shapes.hull_polytope``: ``shapes`` is a Taichi
-module (layer L2) and the scene layer (L1) must load without Taichi. So the
-checks of ``hull_polytope`` are repeated here in numpy/scipy, with the same
-thresholds (at least 4 points, finite, non-zero volume, at most
-``MAX_HULL_VERTICES`` hull vertices, merged coplanar faces with Euler
-characteristic 2); a test builds every hull the loader accepts with
-``hull_polytope`` as well, so the two cannot drift apart silently.
+Validation is ``sandbox.polytope.hull_polytope`` itself (numpy/scipy only), so
+the loader accepts exactly the hulls the engine can upload.
 
 Reduction (mesh files only): a mesh whose convex hull has more than
 ``MAX_HULL_VERTICES`` vertices is simplified by farthest-point sampling over its
@@ -21,25 +16,13 @@ from __future__ import annotations
 
 import numpy as np
 
-MAX_HULL_VERTICES = 64
-"""Largest hull accepted; equal to ``sandbox.shapes.MAX_POLY_VERTS`` (checked by a test)."""
+from ..polytope import MAX_POLY_VERTS, GeometryError, hull_polytope
 
-COPLANAR_TOL = 1e-6
-"""[1] Same coplanarity tolerance as ``hull_polytope`` (cosine distance of face normals)."""
-
+MAX_HULL_VERTICES = MAX_POLY_VERTS
+"""Largest hull accepted: what the narrowphase supports."""
 
 class HullError(ValueError):
     """A point set does not make an acceptable hull; the loader re-raises it as a SceneError."""
-
-
-def _qhull(pts: np.ndarray):
-    from scipy.spatial import ConvexHull, QhullError
-
-    try:
-        return ConvexHull(pts)
-    except (QhullError, ValueError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise HullError(f"hull is degenerate (flat or collinear points): {first}") from None
 
 
 def _check_points(points) -> np.ndarray:
@@ -51,43 +34,7 @@ def _check_points(points) -> np.ndarray:
         raise HullError(f"a hull needs at least 4 points of 3 coordinates, got shape {pts.shape}")
     if not np.all(np.isfinite(pts)):
         raise HullError("hull vertices contain NaN or inf")
-    if float(np.ptp(pts, axis=0).max()) <= 0:
-        raise HullError("hull is degenerate (all points coincide)")
     return pts
-
-
-def _check_hull(pts: np.ndarray, hull) -> None:
-    """Volume and merged-face topology checks, exactly as ``hull_polytope`` does them."""
-    scale = np.float64(np.ptp(pts, axis=0).max())  # numpy: scale**3 may overflow to inf, never raise
-    if not hull.volume > 1e-9 * scale**3:
-        raise HullError("hull is degenerate (zero volume)")
-    groups: list[tuple[np.ndarray, float, set]] = []
-    for tri, eq in zip(hull.simplices, hull.equations):
-        n, d = eq[:3], -eq[3]
-        for gn, gd, members in groups:
-            if np.dot(gn, n) > 1 - COPLANAR_TOL and abs(gd - d) < COPLANAR_TOL * scale * 10:
-                members.update(int(v) for v in tri)
-                break
-        else:
-            groups.append((n, d, {int(v) for v in tri}))
-    edges = set()
-    for n, _, members in groups:
-        idx = np.fromiter(members, dtype=np.int64)
-        p = pts[idx]
-        c = p.mean(axis=0)
-        u = p[0] - c
-        un = np.linalg.norm(u)
-        if un <= 0:
-            raise HullError("hull topology is inconsistent (a face collapses to a point)")
-        u /= un
-        w = np.cross(n, u)
-        loop = idx[np.argsort(np.arctan2((p - c) @ w, (p - c) @ u))]
-        for i in range(len(loop)):
-            a, b = int(loop[i]), int(loop[(i + 1) % len(loop)])
-            edges.add((min(a, b), max(a, b)))
-    n_verts = len(np.unique(hull.simplices))
-    if n_verts - len(edges) + len(groups) != 2:
-        raise HullError("hull topology is inconsistent (Euler characteristic != 2); points may be nearly coplanar")
 
 
 def hull_vertices(points, *, max_vertices: int = MAX_HULL_VERTICES) -> np.ndarray:
@@ -96,15 +43,17 @@ def hull_vertices(points, *, max_vertices: int = MAX_HULL_VERTICES) -> np.ndarra
     Raises HullError when the hull is degenerate or has more than ``max_vertices`` vertices.
     """
     pts = _check_points(points)
-    hull = _qhull(pts)
-    used = np.unique(hull.simplices)
-    if len(used) > max_vertices:
-        raise HullError(
-            f"hull has {len(used)} vertices; at most {max_vertices} are supported "
-            "(give fewer points, or a mesh file via 'path', which is simplified automatically)"
-        )
-    _check_hull(pts, hull)
-    return pts[used].copy()
+    try:
+        with np.errstate(over="ignore", invalid="ignore"):
+            poly = hull_polytope(pts)
+    except GeometryError as exc:
+        text = str(exc)
+        if "supported" in text:
+            text += " (give fewer points, or a mesh file via 'path', which is simplified automatically)"
+        raise HullError(text) from None
+    if len(poly.vertices) > max_vertices:
+        raise HullError(f"hull has {len(poly.vertices)} vertices; at most {max_vertices} are supported")
+    return poly.vertices.copy()
 
 
 def farthest_point_subset(points: np.ndarray, count: int) -> np.ndarray:
@@ -127,9 +76,14 @@ def reduce_to_hull(points, *, max_vertices: int = MAX_HULL_VERTICES) -> tuple[np
 
     Returns (hull vertices, number of hull vertices before simplification).
     """
+    from scipy.spatial import ConvexHull, QhullError
+
     pts = _check_points(points)
-    hull = _qhull(pts)
-    verts = pts[np.unique(hull.simplices)]
+    try:
+        verts = pts[ConvexHull(pts).vertices]
+    except (QhullError, ValueError) as exc:
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise HullError(f"hull is degenerate (flat or collinear points): {first}") from None
     original = len(verts)
     if original > max_vertices:
         verts = verts[farthest_point_subset(verts, max_vertices)]
