@@ -38,6 +38,7 @@ class HostWorld:
     cell_size: float
     static_entries: int
     n_dynamic: int
+    has_restitution: bool = False
 
     def capacities(self, pairs: int | None = None, grid_entries: int | None = None) -> Capacities:
         sizes = PolytopePool.sizes(self.polytopes)
@@ -172,6 +173,7 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
     kinds = tuple(sorted(set(int(k) for k in arrays["kind"]) | ({PLANE} if len(scene.planes) else set())))
     host = HostWorld(body_arrays, arrays, planes, dyn, static_ids, polys, kinds, cell, 0, len(dyn))
     host.static_entries = _static_entry_count(host, margin)
+    host.has_restitution = bool(np.any(arrays["restitution"] > 0) or np.any(planes["restitution"] > 0))
     return host
 
 

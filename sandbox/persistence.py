@@ -45,6 +45,7 @@ def clear_history(hist: ti.template()):
 @ti.kernel
 def match_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
                    shapes: ti.template(), match_distance: ti.f32, warm_factor: ti.f32):
+    """``warm_factor`` also converts the stored per-step impulse to this step's per-substep one."""
     for q in range(c.count[None]):
         i = c.shape_a[q]
         a = c.body_a[q]
@@ -71,15 +72,16 @@ def match_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), b
 
 @ti.kernel
 def store_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                   shapes: ti.template()):
+                   shapes: ti.template(), substeps: ti.i32):
     n = ti.min(c.count[None], hist.capacity)
     hist.count[None] = n
     for q in range(n):
         a = c.body_a[q]
         hist.partner[q] = c.partner[q]
         hist.feature[q] = c.feature[q]
-        hist.anchor[q] = quat_rotate_inv(bodies.rot[a], c.point[q] - bodies.pos[a])
-        lam = rows.lam[q]
+        # the pose the contact was found at: the step's saved start state
+        hist.anchor[q] = quat_rotate_inv(bodies.good_rot[a], c.point[q] - bodies.good_pos[a])
+        lam = rows.lam[q] * ti.cast(substeps, ti.f32)  # per-substep impulse -> per step
         hist.lam_n[q] = lam[0]
         hist.lam_t[q] = rows.t1[q] * lam[1] + rows.t2[q] * lam[2]
     for i in range(hist.shape_first.shape[0]):

@@ -11,10 +11,10 @@ from contextlib import contextmanager
 
 import taichi as ti
 
-STAGES = ("integrate_velocities", "broadphase", "narrowphase", "prepare", "solve", "integrate_positions")
+STAGES = ("integrate_velocities", "broadphase", "narrowphase", "prepare", "solve", "integrate_positions", "relax")
 GROUPS = {
     "collide": ("broadphase", "narrowphase"),
-    "solve": ("prepare", "solve"),
+    "solve": ("prepare", "solve", "relax"),
     "integrate": ("integrate_velocities", "integrate_positions"),
 }
 

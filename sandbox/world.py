@@ -43,6 +43,8 @@ class World:
         self.arch = backend.init(arch)
         self.scene = scene
         self.settings = settings or Settings()
+        if scene.world.contact_hertz is not None and settings is None:
+            self.settings = self.settings.replace(contact_hertz=float(scene.world.contact_hertz))
         self.dt = float(scene.world.dt)
         self.substeps = int(scene.world.substeps)
         self.gravity = np.asarray(scene.world.gravity, dtype=np.float32)
@@ -93,33 +95,49 @@ class World:
             self.profiler.steps += 1
 
     def _substep(self, h: float) -> None:
-        from .bodies import restore_good_state, save_good_state
-        from .integrate import integrate_positions, integrate_velocities
+        from .bodies import restore_good_state, save_good_state, update_world_inertia
+        from .integrate import check_velocities, integrate_positions, integrate_velocities
         from .persistence import match_contacts, store_contacts
-        from .solvers.rows import prepare_rows
+        from .solvers.rows import BIASED, RELAX, RESTITUTION, prepare_rows, soft_contact_coefficients
 
         b, s, p = self.buf, self.settings, self.profiler
+        k = self.iterations
+        h_sub = h / k
+        gravity = ti.math.vec3(*self.gravity)
         save_good_state(b.bodies)
         b.errors.clear()
-        with p.stage("integrate_velocities"):
-            integrate_velocities(b.bodies, ti.math.vec3(*self.gravity), h, True)
+        update_world_inertia(b.bodies)
         for attempt in range(MAX_GROWTH_RETRIES + 1):
             self._collide()
             if not self._grow_if_needed():
                 break
             b = self.buf
-            integrate_velocities(b.bodies, ti.math.vec3(*self.gravity), h, True)
         else:
             raise CapacityError("contact buffers kept overflowing after growing; the scene is too dense")
         with p.stage("prepare"):
-            prepare_rows(b.rows, b.contacts, b.bodies, h, s.slop, s.baumgarte, s.max_push_speed,
+            bias_rate, softness = soft_contact_coefficients(h_sub, s.contact_hertz, s.contact_damping_ratio)
+            prepare_rows(b.rows, b.contacts, b.bodies, 1.0 / h_sub, bias_rate, softness, s.slop, s.max_push_speed,
                          s.restitution_threshold)
-            match_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, s.match_distance, s.warm_start)
-        with p.stage("solve"):
-            self._solve()
-            store_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes)
-        with p.stage("integrate_positions"):
-            integrate_positions(b.bodies, h, b.errors)
+            match_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, s.match_distance, s.warm_start / k)
+            self._prepare_schedule()
+        for _ in range(k):
+            with p.stage("integrate_velocities"):
+                integrate_velocities(b.bodies, gravity, h_sub)
+            with p.stage("solve"):
+                if s.warm_start > 0.0:
+                    self._warm_start()
+                for _ in range(s.sweeps):
+                    self._sweep(BIASED)
+            with p.stage("integrate_positions"):
+                integrate_positions(b.bodies, h_sub, b.errors)
+            with p.stage("relax"):
+                for _ in range(s.sweeps):
+                    self._sweep(RELAX)
+        with p.stage("relax"):
+            if self._host.has_restitution:
+                self._sweep(RESTITUTION)
+            check_velocities(b.bodies, b.errors)
+            store_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, k)
         flags = int(b.errors.flags[None])
         if flags:
             body = int(b.errors.body[None])
@@ -162,36 +180,48 @@ class World:
         self._acquire(caps)
         return True
 
-    def _solve(self) -> None:
+    def _schedule(self):
+        from .solvers import blocks
+
+        kind = blocks.PER_POINT if SOLVERS[self.solver].block == "point" else blocks.PER_MANIFOLD
+        return kind, self.buf.blocks, self.buf.rows, self.buf.contacts, self.buf.bodies
+
+    def _prepare_schedule(self) -> None:
+        """Per-step set-up of the chosen schedule: body adjacency (all), colouring (pgs-colored)."""
         from .solvers import blocks, pgs
 
-        name, it = self.solver, self.iterations
-        kind = blocks.PER_POINT if SOLVERS[name].block == "point" else blocks.PER_MANIFOLD
-        split = name in ("mass-splitting", "block-mass-splitting")
-        omega = self.solver_options.get("relaxation") or self.settings.jacobi_relaxation
-        mode = blocks.MODE_SPLIT if split else blocks.MODE_JACOBI
-        b, rows, c, bodies = self.buf.blocks, self.buf.rows, self.buf.contacts, self.buf.bodies
-        blocks.build_adjacency(b, c, bodies, kind, mode, float(omega))
-        if self.settings.warm_start > 0.0:
-            blocks.warm_start(b, rows, c, bodies, kind)
-        if name == "pgs":
-            pgs.pgs_serial(rows, c, bodies, it)
-        elif name == "pgs-colored":
+        kind, b, rows, c, bodies = self._schedule()
+        split = self.solver in ("mass-splitting", "block-mass-splitting")
+        omega = self.solver_options.get("relaxation") or (1.0 if split else self.settings.jacobi_relaxation)
+        blocks.build_adjacency(b, c, bodies, kind, blocks.MODE_SPLIT if split else blocks.MODE_JACOBI, float(omega))
+        if self.solver == "pgs-colored":
             o = self.solver_options
             col = self.buf.coloring
             pgs.color_manifolds(col, c, bodies, int(o["shuffle"]), int(o["seed"]), self.step_count)
-            starts = col.color_start.to_numpy()
-            n_colors = int(col.color_count[None])
-            self.last_color_count = n_colors
-            for _ in range(it):
-                for k in range(n_colors):
-                    pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]))
-                if starts[pgs.MAX_COLORS + 1] > starts[pgs.MAX_COLORS]:
-                    pgs.solve_overflow(rows, c, bodies, col, int(starts[pgs.MAX_COLORS]),
-                                       int(starts[pgs.MAX_COLORS + 1]))
+            self._color_starts = col.color_start.to_numpy()
+            self.last_color_count = int(col.color_count[None])
+
+    def _warm_start(self) -> None:
+        from .solvers import blocks
+
+        kind, b, rows, c, bodies = self._schedule()
+        blocks.warm_start(b, rows, c, bodies, kind)
+
+    def _sweep(self, mode: int) -> None:
+        """One pass of the chosen schedule over every contact row."""
+        from .solvers import blocks, pgs
+
+        kind, b, rows, c, bodies = self._schedule()
+        if self.solver == "pgs":
+            pgs.pgs_serial(rows, c, bodies, 1, mode)
+        elif self.solver == "pgs-colored":
+            col, starts, overflow = self.buf.coloring, self._color_starts, pgs.MAX_COLORS
+            for k in range(self.last_color_count):
+                pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]), mode)
+            if starts[overflow + 1] > starts[overflow]:
+                pgs.solve_overflow(rows, c, bodies, col, int(starts[overflow]), int(starts[overflow + 1]), mode)
         else:
-            for _ in range(it):
-                blocks.jacobi_sweep(b, rows, c, bodies, kind)
+            blocks.jacobi_sweep(b, rows, c, bodies, kind, mode)
 
     # ------------------------------------------------------------------ queries
     def body_name(self, i: int) -> str:
@@ -232,7 +262,8 @@ class World:
 
     def contacts(self) -> dict[str, np.ndarray]:
         """This step's contact points: body_a, body_b, point (world) [m], normal (a to b),
-        separation [m], impulse (normal, tangent1, tangent2) [N s] and manifold index."""
+        separation at the step start [m], impulse over the step (normal, tangent1, tangent2)
+        [N s] and manifold index."""
         c, r = self.buf.contacts, self.buf.rows
         n = int(c.count[None])
         return {
@@ -241,7 +272,7 @@ class World:
             "point": c.point.to_numpy()[:n],
             "normal": c.normal.to_numpy()[:n],
             "separation": c.sep.to_numpy()[:n],
-            "impulse": r.lam.to_numpy()[:n],
+            "impulse": r.lam.to_numpy()[:n] * self.iterations,  # per substep -> per step
             "manifold": c.manifold.to_numpy()[:n],
         }
 

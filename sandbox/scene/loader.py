@@ -32,22 +32,17 @@ import numpy as np
 
 from ..errors import SceneError
 from . import generators, terrain
+from ..solvers import SOLVERS  # the registry itself (Taichi-free), so names and options cannot drift
 from .hull import HullError, hull_vertices, reduce_to_hull
 from .massprops import body_mass_properties
 from .rotations import quat_to_matrix
 from .schema import Context, Reader
 from .spec import BodySpec, MeshSpec, PlaneSpec, Scene, ShapeSpec, SolverSpec, WorldSpec
 
-SOLVER_NAMES = ("pgs", "pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting")
-SOLVER_OPTIONS = {
-    "pgs": (),
-    "pgs-colored": ("shuffle", "seed"),
-    "jacobi": ("relaxation",),
-    "mass-splitting": (),
-    "block-mass-splitting": (),
-}
-"""Options each solver takes; mirrors ``sandbox.solvers.SOLVERS[name].defaults`` (a test keeps them
-equal) so a misplaced option fails at load time with its entry, not later in ``World``."""
+SOLVER_NAMES = tuple(SOLVERS)
+SOLVER_OPTIONS = {name: tuple(info.defaults) for name, info in SOLVERS.items()}
+"""Options each solver takes, from the solver registry, so a misplaced option fails at load time
+with its entry, not later in ``World``."""
 GENERATOR_KINDS = ("stack", "pyramid", "grid")
 PART_SHAPES = ("box", "sphere", "capsule", "hull")
 SOLID_SHAPES = PART_SHAPES + ("compound",)
@@ -62,7 +57,7 @@ MAX_HEIGHTFIELD_CELLS = 2048
 """Per axis; 2048 x 2048 cells is 8.4 million triangles."""
 
 TOP_KEYS = ("description", "world", "solver", "static", "body", "generate")
-WORLD_KEYS = ("gravity", "dt", "substeps")
+WORLD_KEYS = ("gravity", "dt", "substeps", "contact_hertz")
 SOLVER_KEYS = ("name", "iterations", "shuffle", "relaxation", "seed")
 SHAPE_KEYS = {
     "box": ("half_extents",),
@@ -192,6 +187,7 @@ def _read_world(r: Reader | None) -> WorldSpec:
         gravity=r.vector("gravity", 3, (0.0, 0.0, -9.81)),
         dt=r.real("dt", 1.0 / 60.0, positive=True),
         substeps=r.integer("substeps", 1, minimum=1, maximum=10_000),
+        contact_hertz=r.real("contact_hertz", None, positive=True) if "contact_hertz" in r.data else None,
     )
 
 

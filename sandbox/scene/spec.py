@@ -73,6 +73,7 @@ class WorldSpec:
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -9.81]))  # [m/s^2]
     dt: float = 1.0 / 60.0  # [s] time step
     substeps: int = 1  # the whole collide-solve-integrate step runs this many times per step
+    contact_hertz: float | None = None  # [Hz] contact stiffness; None: Settings.contact_hertz
 
 
 @dataclass

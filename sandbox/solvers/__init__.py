@@ -33,9 +33,12 @@ SOLVERS = {
         {"shuffle": False, "seed": 0},
     ),
     "jacobi": SolverInfo("jacobi", "point", "projected Jacobi with relaxation", {"relaxation": None}),
-    "mass-splitting": SolverInfo("mass-splitting", "point", "Tonge et al. 2012, one sub-body per contact point"),
+    "mass-splitting": SolverInfo(
+        "mass-splitting", "point", "Tonge et al. 2012, one sub-body per contact point", {"relaxation": None}
+    ),
     "block-mass-splitting": SolverInfo(
-        "block-mass-splitting", "manifold", "Tonge et al. 2012, one sub-body per contact manifold (block)"
+        "block-mass-splitting", "manifold", "Tonge et al. 2012, one sub-body per contact manifold (block)",
+        {"relaxation": None},
     ),
 }
 
@@ -53,10 +56,10 @@ def check_solver(name: str, iterations: int, options: dict) -> dict:
         raise SandboxError(f"solver {name!r} has no option(s) {', '.join(sorted(unknown))}; allowed: {allowed}")
     merged = dict(info.defaults)
     merged.update(options)
-    if name == "jacobi" and merged["relaxation"] is not None:
+    if merged.get("relaxation") is not None:
         r = merged["relaxation"]
-        if not isinstance(r, (int, float)) or not (0.0 < float(r) < 2.0):
-            raise SandboxError(f"jacobi relaxation must be in (0, 2), got {r!r}")
+        if isinstance(r, bool) or not isinstance(r, (int, float)) or not (0.0 < float(r) < 2.0):
+            raise SandboxError(f"{name} relaxation must be in (0, 2), got {r!r}")
     if name == "pgs-colored":
         if not isinstance(merged["shuffle"], bool):
             raise SandboxError(f"pgs-colored option shuffle must be true or false, got {merged['shuffle']!r}")

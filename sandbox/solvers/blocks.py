@@ -14,6 +14,8 @@ Per body, ``scale`` multiplies inverse mass and inertia inside a block and
 ``weight`` multiplies the velocity change written to the slot:
 * mass splitting: scale = n_b (blocks touching b), weight = 1/n_b — the average
   of the n_b sub-body velocities, i.e. every impulse applied with the full mass;
+  with over-relaxation omega (0 < omega < 2 keeps the convergence proof,
+  method.md 1.7) scale = n_b / omega and weight = omega / n_b;
 * projected Jacobi with relaxation omega: scale = 1/omega, weight = omega. The
   step becomes lambda += omega * dlambda (K scaled by 1/omega), and the impulse
   written to the body equals the change of the accumulated lambda, so warm
@@ -115,8 +117,8 @@ def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), k
         deg = ti.max(e1 - e0, 1)
         ti.atomic_max(s.max_degree[None], e1 - e0)
         if ti.static(mode == MODE_SPLIT):
-            s.scale[i] = ti.cast(deg, ti.f32)
-            s.weight[i] = 1.0 / deg
+            s.scale[i] = ti.cast(deg, ti.f32) / omega
+            s.weight[i] = omega / deg
         else:
             s.scale[i] = 1.0 / omega
             s.weight[i] = omega
@@ -156,7 +158,8 @@ def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: 
 
 
 @ti.kernel
-def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template()):
+def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+                 mode: ti.template()):
     """One parallel sweep over all blocks from the same velocities, then the per-body merge."""
     for k in range(s.block_count[None]):
         start, count, a, b = block_range(c, k, kind)
@@ -166,7 +169,7 @@ def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
         sa = s.scale[a]
         sb = s.scale[b]
         for q in range(start, start + count):
-            va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, sa, sb)
+            va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, sa, sb, mode)
         s.slot_dv[2 * k] = (va - va0) * s.weight[a]
         s.slot_dw[2 * k] = (wa - wa0) * s.weight[a]
         s.slot_dv[2 * k + 1] = (vb - vb0) * s.weight[b]

@@ -1,20 +1,40 @@
-"""Contact rows shared by every solver: anchors, tangent basis, unit responses, bias,
-accumulated impulses. Written once so that PGS, Jacobi and mass splitting differ
-only in how they visit rows and combine impulses (house rule 6).
+"""Contact rows shared by every solver: anchors, tangent basis, unit responses,
+accumulated impulses, and the row update itself. Written once so that PGS, Jacobi
+and mass splitting differ only in how they visit rows and combine impulses
+(house rule 6).
 
 Per point we keep each body's share of the unit response separately,
 ``k_a = 1/m_a + (r_a x e)^T I_a^-1 (r_a x e)`` (and ``k_b``) for e = n, t1, t2,
 so a schedule can form ``K~ = s_a k_a + s_b k_b`` with its own mass scale
-(s = 1 for PGS and Jacobi, s = n_body for mass splitting; method.md 1.4).
-The bias is physical and computed from the geometry only, never from K~
-(method.md 1.9): Baumgarte beyond the slop with a capped push speed,
-speculative ``sep / h`` for gaps, and restitution for fast approaches.
-"""
+(s = 1 for PGS, s = n_body for mass splitting; method.md 1.4).
 
+Time stepping is Box2D v3's soft step (Catto, "Solver2D", 2024): one *iteration*
+is one substep of h / iterations: gravity, warm start, one biased sweep,
+position update, one relax sweep. Between substeps the separation of every
+point is updated from the bodies' motion since the step began (the Jacobians
+stay those of the step start), so the solver sees penetration resolve as it
+happens instead of extrapolating from a stale gap. Contacts are soft
+(method.md 1.9): penetration beyond the slop is a spring-damper of
+``contact_hertz`` and ``contact_damping_ratio``; with omega = 2 pi f and
+c = h omega (2 zeta + h omega) the normal row solves the regularised problem
+``0 <= lambda  _|_  J u + b + gamma lambda >= 0``, bias ``b`` = rate x
+penetration, compliance ``gamma = K / c`` from the *unsplit* response K. A
+schedule with split response K~ updates ``dl = -(J u + b + gamma lambda) /
+(K~ + gamma)``, which has the same fixed point as the unsplit row: softness is
+physics, and mass splitting must not change it. Gaps (s > 0) are rigid
+speculative targets s / h. The relax sweep is rigid with no spring term: the
+positions were corrected by the biased velocity, but the push-out velocity does
+not survive as momentum, so position correction cannot pump energy into a
+stack. Restitution is a last normal-only pass against the approach speed
+measured before the step (Box2D v3's restitution stage).
+
+Impulses are per substep; the contact history stores them per step
+(x iterations) so changing the iteration count keeps warm starting consistent.
+"""
 
 import taichi as ti
 
-from ..math3d import plane_basis
+from ..math3d import plane_basis, quat_rotate, quat_rotate_inv
 
 vec3 = ti.math.vec3
 
@@ -30,9 +50,26 @@ class Rows:
         self.t2 = ti.Vector.field(3, ti.f32, c)
         self.k_a = ti.Vector.field(3, ti.f32, c)  # body a's unit response share for (n, t1, t2)
         self.k_b = ti.Vector.field(3, ti.f32, c)
-        self.bias = ti.field(ti.f32, c)  # [m/s] target: n . v_rel + bias >= 0
+        self.approach = ti.field(ti.f32, c)  # [m/s] normal velocity before the step (restitution)
+        # per-step constants of the row update: 1/h_sub, bias rate, softness 1/c, slop, max push
+        self.params = ti.field(ti.f32, 8)
         self.lam = ti.Vector.field(3, ti.f32, c)  # accumulated impulses (n, t1, t2) [N s]
         self.residual = ti.field(ti.f32, c)  # squared LCP residual of the point's rows [(m/s)^2]
+
+
+def soft_contact_coefficients(h: float, hertz: float, zeta: float) -> tuple[float, float]:
+    """(bias rate [1/s], softness 1/c) of a contact spring of ``hertz`` for substep ``h``,
+    capped at a quarter of the substep rate (Box2D v3 ``b2MakeSoft`` and its contact limit)."""
+    import math
+
+    hertz = min(hertz, 0.25 / h)
+    omega = 2.0 * math.pi * hertz
+    c = h * omega * (2.0 * zeta + h * omega)
+    return omega / (2.0 * zeta + h * omega), 1.0 / c
+
+
+INV_H, BIAS_RATE, SOFTNESS, SLOP, MAX_PUSH, RESTITUTION_THRESHOLD = range(6)
+BIASED, RELAX, RESTITUTION = 0, 1, 2
 
 
 @ti.func
@@ -42,8 +79,14 @@ def _share(inv_mass: ti.f32, inv_inertia: ti.template(), r: vec3, e: vec3) -> ti
 
 
 @ti.kernel
-def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), h: ti.f32,
-                 slop: ti.f32, baumgarte: ti.f32, max_push: ti.f32, restitution_threshold: ti.f32):
+def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), inv_h: ti.f32, bias_rate: ti.f32,
+                 softness: ti.f32, slop: ti.f32, max_push: ti.f32, restitution_threshold: ti.f32):
+    rows.params[INV_H] = inv_h
+    rows.params[BIAS_RATE] = bias_rate
+    rows.params[SOFTNESS] = softness
+    rows.params[SLOP] = slop
+    rows.params[MAX_PUSH] = max_push
+    rows.params[RESTITUTION_THRESHOLD] = restitution_threshold
     for q in range(c.count[None]):
         a = c.body_a[q]
         b = c.body_b[q]
@@ -62,23 +105,25 @@ def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), h
         rows.t2[q] = t2
         rows.k_a[q] = vec3(_share(ima, ia, ra, n), _share(ima, ia, ra, t1), _share(ima, ia, ra, t2))
         rows.k_b[q] = vec3(_share(imb, ib, rb, n), _share(imb, ib, rb, t1), _share(imb, ib, rb, t2))
-        sep = c.sep[q]
-        bias = 0.0
-        if sep > 0.0:
-            bias = sep / h  # speculative: the gap may close exactly this step
-        elif sep < -slop:
-            bias = ti.max(baumgarte / h * (sep + slop), -max_push)
         v_rel = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
-        vn = v_rel.dot(n)
-        e = c.restitution[q]
-        if e > 0.0 and vn < -restitution_threshold and sep + vn * h < 0.0:
-            bias = ti.min(bias, e * vn)
-        rows.bias[q] = bias
+        rows.approach[q] = v_rel.dot(n)
+
+
+@ti.func
+def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32) -> ti.f32:
+    """Separation of point q now, from its value at the step start and the bodies' motion since."""
+    a = c.body_a[q]
+    b = c.body_b[q]
+    ra = rows.ra[q]
+    rb = rows.rb[q]
+    da = bodies.pos[a] - bodies.good_pos[a] + quat_rotate(bodies.rot[a], quat_rotate_inv(bodies.good_rot[a], ra)) - ra
+    db = bodies.pos[b] - bodies.good_pos[b] + quat_rotate(bodies.rot[b], quat_rotate_inv(bodies.good_rot[b], rb)) - rb
+    return c.sep[q] + c.normal[q].dot(db - da)
 
 
 @ti.func
 def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32,
-                va: vec3, wa: vec3, vb: vec3, wb: vec3, sa: ti.f32, sb: ti.f32):
+                va: vec3, wa: vec3, vb: vec3, wb: vec3, sa: ti.f32, sb: ti.f32, mode: ti.template()):
     """Friction rows then the normal row of point q, on velocity copies.
 
     ``sa``/``sb`` scale body a's/b's inverse mass and inertia, both in the
@@ -86,6 +131,8 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
     a mass-split block consistent (method.md 1.5). Friction is an isotropic cone:
     the tangent impulse is projected onto the disk of radius mu * lambda_n.
     The normal row goes last so non-penetration has the final word (Box2D v3).
+    ``mode``: BIASED (soft, with position bias), RELAX (rigid, no bias) or
+    RESTITUTION (normal row only, towards -e times the approach speed).
     """
     a = c.body_a[q]
     b = c.body_b[q]
@@ -96,34 +143,54 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
     ra = rows.ra[q]
     rb = rows.rb[q]
     n = c.normal[q]
-    t1 = rows.t1[q]
-    t2 = rows.t2[q]
     k = sa * rows.k_a[q] + sb * rows.k_b[q]
     lam = rows.lam[q]
-    # friction
-    dv = vb + wb.cross(rb) - va - wa.cross(ra)
-    f1 = lam[1] - dv.dot(t1) / k[1]
-    f2 = lam[2] - dv.dot(t2) / k[2]
-    limit = c.friction[q] * lam[0]
-    mag = ti.sqrt(f1 * f1 + f2 * f2)
-    if mag > limit:
-        s = limit / mag
-        f1 *= s
-        f2 *= s
-    imp = t1 * (f1 - lam[1]) + t2 * (f2 - lam[2])
-    va -= ima * imp
-    wa -= ia @ ra.cross(imp)
-    vb += imb * imp
-    wb += ib @ rb.cross(imp)
-    # normal
-    dv = vb + wb.cross(rb) - va - wa.cross(ra)
-    ln = ti.max(lam[0] - (dv.dot(n) + rows.bias[q]) / k[0], 0.0)
-    imp = n * (ln - lam[0])
-    va -= ima * imp
-    wa -= ia @ ra.cross(imp)
-    vb += imb * imp
-    wb += ib @ rb.cross(imp)
-    rows.lam[q] = vec3(ln, f1, f2)
+    if ti.static(mode != RESTITUTION):
+        t1 = rows.t1[q]
+        t2 = rows.t2[q]
+        dv = vb + wb.cross(rb) - va - wa.cross(ra)
+        f1 = lam[1] - dv.dot(t1) / k[1]
+        f2 = lam[2] - dv.dot(t2) / k[2]
+        limit = c.friction[q] * lam[0]
+        mag = ti.sqrt(f1 * f1 + f2 * f2)
+        if mag > limit:
+            s = limit / mag
+            f1 *= s
+            f2 *= s
+        imp = t1 * (f1 - lam[1]) + t2 * (f2 - lam[2])
+        va -= ima * imp
+        wa -= ia @ ra.cross(imp)
+        vb += imb * imp
+        wb += ib @ rb.cross(imp)
+        lam[1] = f1
+        lam[2] = f2
+    # normal row
+    target = 0.0
+    gamma = 0.0
+    active = True
+    if ti.static(mode == RESTITUTION):
+        e = c.restitution[q]
+        vn0 = rows.approach[q]
+        active = e > 0.0 and vn0 < -rows.params[RESTITUTION_THRESHOLD] and lam[0] > 0.0
+        target = e * vn0
+    else:
+        s = current_separation(rows, c, bodies, q)
+        if s > 0.0:
+            target = s * rows.params[INV_H]
+        elif ti.static(mode == BIASED):
+            slop = rows.params[SLOP]
+            target = ti.max(rows.params[BIAS_RATE] * ti.min(s + slop, 0.0), -rows.params[MAX_PUSH])
+            gamma = rows.params[SOFTNESS] * (rows.k_a[q][0] + rows.k_b[q][0])
+    if active:
+        dv = vb + wb.cross(rb) - va - wa.cross(ra)
+        ln = ti.max(lam[0] - (dv.dot(n) + target + gamma * lam[0]) / (k[0] + gamma), 0.0)
+        imp = n * (ln - lam[0])
+        va -= ima * imp
+        wa -= ia @ ra.cross(imp)
+        vb += imb * imp
+        wb += ib @ rb.cross(imp)
+        lam[0] = ln
+    rows.lam[q] = lam
     return va, wa, vb, wb
 
 
@@ -135,7 +202,8 @@ def point_impulse(rows: ti.template(), c: ti.template(), q: ti.i32) -> vec3:
 
 @ti.kernel
 def compute_residuals(rows: ti.template(), c: ti.template(), bodies: ti.template()):
-    """Per point squared natural-map residual of the velocity-level LCP (method.md M1/M2)."""
+    """Per point squared natural-map residual of the velocity-level LCP (method.md M1/M2) of
+    the last problem the step solved: rigid rows with speculative gap targets (the relax)."""
     for q in range(c.count[None]):
         a = c.body_a[q]
         b = c.body_b[q]
@@ -144,7 +212,8 @@ def compute_residuals(rows: ti.template(), c: ti.template(), bodies: ti.template
         dv = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
         k = rows.k_a[q] + rows.k_b[q]
         lam = rows.lam[q]
-        w = dv.dot(c.normal[q]) + rows.bias[q]
+        s = current_separation(rows, c, bodies, q)
+        w = dv.dot(c.normal[q]) + ti.max(s, 0.0) * rows.params[INV_H]
         rn = ti.min(w, k[0] * lam[0])
         # friction: distance of lambda_t from the projection of its gradient step onto the disk
         g1 = lam[1] - dv.dot(rows.t1[q]) / k[1]

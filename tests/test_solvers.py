@@ -1,0 +1,131 @@
+"""The parallel solvers against the serial PGS reference (issue: parallel contact solvers)."""
+
+import numpy as np
+import pytest
+
+from sandbox import Scene, SimulationError, World
+
+from .conftest import box_body, plane, scene_dict
+
+PARALLEL = ["pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting"]
+DETERMINISTIC = ["pgs", "pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting"]
+
+
+def _sphere(position, radius=0.5, density=1000.0):
+    return {"shape": "sphere", "radius": radius, "position": list(position), "density": density}
+
+
+SMALL_PROBLEMS = {
+    "box_on_plane": [box_body([0, 0, 0.5])],
+    "three_box_stack": [box_body([0, 0, 0.5 + i]) for i in range(3)],
+    "box_on_four_spheres": [
+        _sphere([-0.6, -0.6, 0.25], radius=0.25),
+        _sphere([0.6, -0.6, 0.25], radius=0.25),
+        _sphere([-0.6, 0.6, 0.25], radius=0.25),
+        _sphere([0.6, 0.6, 0.25], radius=0.25),
+        box_body([0, 0, 1.0], half=(1.0, 1.0, 0.5)),
+    ],
+}
+
+
+def _one_step(bodies, solver, sweeps):
+    """One step from rest with no warm start, as one substep whose velocity-level problem
+    (soft, then rigid relax) is swept `sweeps` times."""
+    from sandbox import Settings
+
+    scene = Scene.from_dict(scene_dict(bodies))
+    world = World(scene, solver=solver, iterations=1, arch="cpu", settings=Settings(warm_start=0.0, sweeps=sweeps))
+    world.step(1)
+    c = world.contacts()
+    per_manifold = np.zeros((c["manifold"].max() + 1, 3))
+    force = c["normal"] * c["impulse"][:, :1]  # the normal impulses, as vectors
+    np.add.at(per_manifold, c["manifold"], force)
+    return per_manifold, world.state()["linear_velocity"]
+
+
+@pytest.mark.parametrize("problem", sorted(SMALL_PROBLEMS))
+@pytest.mark.parametrize("solver", ["mass-splitting", "block-mass-splitting"])
+def test_mass_splitting_converges_to_pgs(problem, solver):
+    """Given enough iterations, the split solvers reach PGS's solution: same impulse per body
+    pair and same velocities (the per-point split of a statically indeterminate manifold is
+    not unique, its resultant is)."""
+    ref_imp, ref_vel = _one_step(SMALL_PROBLEMS[problem], "pgs", 500)
+    imp, vel = _one_step(SMALL_PROBLEMS[problem], solver, 3000)
+    scale = np.abs(ref_imp).max()
+    assert np.abs(imp - ref_imp).max() / scale < 1e-4
+    assert np.abs(vel - ref_vel).max() < 1e-4 * 9.81 / 60.0 * 10  # [m/s], relative to the gravity velocity
+
+
+TALL = (0.2, 0.2, 1.0)
+JACOBI_PROBLEMS = {
+    "tall_box_on_plane": [box_body([0, 0, 1.0], half=TALL)],
+    "two_tall_boxes": [box_body([0, 0, 1.0], half=TALL), box_body([0, 0, 3.0], half=TALL)],
+}
+
+
+@pytest.mark.parametrize("problem", sorted(JACOBI_PROBLEMS))
+def test_plain_jacobi_does_not_converge_where_mass_splitting_does(problem):
+    """A tall box resting on 4 points: the unit response of one corner is 1.23/m, so plain
+    Jacobi (relaxation 1) gives each corner the impulse that would stop the box alone, 3.25x too
+    much in total; next sweep every corner sees the box flying off and drops to zero; the iterate
+    cycles and the residual never falls (method.md 1.3, docs/method-notes.md). Mass splitting
+    divides the box among its 4 corners and converges. (A unit cube is the lucky exception:
+    its corner response is exactly 4/m, so plain Jacobi is exact there.) One step from rest
+    without warm starting, so each solver starts from lambda = 0."""
+    from sandbox import Settings
+
+    scene = Scene.from_dict(scene_dict(JACOBI_PROBLEMS[problem]))
+    residual = {}
+    for solver, opts in (("jacobi", {"relaxation": 1.0}), ("mass-splitting", {})):
+        world = World(scene, solver=solver, iterations=1, arch="cpu", settings=Settings(warm_start=0.0, sweeps=400),
+                      **opts)
+        try:
+            world.step(1)
+            residual[solver] = world.metrics()["residual_rms"]
+        except SimulationError:  # diverged to inf/NaN: the guard stopped the step
+            residual[solver] = np.inf
+    gravity_velocity = 9.81 / 60.0  # [m/s] what the contacts must cancel in one step
+    assert residual["mass-splitting"] < 1e-4 * gravity_velocity
+    assert residual["jacobi"] > 0.1 * gravity_velocity
+
+
+def _pile_300():
+    return {
+        "world": {"dt": 1.0 / 60.0},
+        "solver": {"name": "pgs", "iterations": 8},
+        "static": [plane()],
+        "generate": [{
+            "kind": "grid", "counts": [5, 6, 10], "spacing": 1.4, "origin": [-2.8, -3.5, 0.8],
+            "shapes": ["box"], "half_extent_range": [0.2, 0.4], "orientation": "random", "seed": 7,
+        }],
+    }
+
+
+@pytest.mark.parametrize("solver", DETERMINISTIC)
+def test_two_runs_are_bitwise_identical(solver):
+    scene = Scene.from_dict(_pile_300())
+    assert len(scene.bodies) == 300
+    states = []
+    for _ in range(2):
+        world = World(scene, solver=solver, iterations=8, arch="cpu")
+        world.step(90)
+        states.append(world.state())
+        assert world.metrics()["contacts"] > 300  # the pile has landed and touches
+    for key in states[0]:
+        np.testing.assert_array_equal(states[0][key], states[1][key], err_msg=key)
+
+
+def test_set_solver_keeps_world_and_warm_start():
+    scene = Scene.from_dict(scene_dict([box_body([0, 0, 0.5 + i]) for i in range(5)]))
+    world = World(scene, solver="pgs", iterations=10, arch="cpu")
+    world.step(60)
+    before = world.state()["position"].copy()
+    lam_before = world.contacts()["impulse"][:, 0].sum()
+    world.set_solver("mass-splitting", iterations=20)
+    world.step(1)
+    # warm-started: the stack keeps carrying its weight on the first step after the switch
+    assert world.contacts()["impulse"][:, 0].sum() == pytest.approx(lam_before, rel=0.05)
+    assert np.abs(world.state()["position"] - before).max() < 2e-3
+    with pytest.raises(Exception) as err:
+        world.set_solver("no-such-solver")
+    assert "unknown solver" in str(err.value)
