@@ -2,20 +2,22 @@
 
 The step, stage by stage (names = profile keys = report keys):
 
-1. ``integrate_velocities``  gravity and implicit gyroscopic term, world inertia
-2. ``broadphase``            AABBs, hash grid, candidate pairs (broadphase.py)
-3. ``narrowphase``           manifolds into the contact buffer (contacts.py)
-4. ``prepare``               rows, then warm-start matching (solvers/rows.py, persistence.py)
-5. ``solve``                 the chosen schedule (solvers/), then impulses stored
-6. ``integrate_positions``   symplectic Euler, quaternion renormalisation, finite guard
+1. ``broadphase``   AABBs, hash grid, candidate pairs (broadphase.py)
+2. ``narrowphase``  manifolds into the contact buffer (contacts.py)
+3. ``prepare``      rows, warm-start matching, schedule set-up (solvers/)
+4. ``iterations`` substeps of h / iterations (Box2D v3's soft step, see solvers/rows.py):
+   ``integrate_velocities`` (gravity), ``solve`` (warm start + one biased sweep of the
+   chosen schedule), ``integrate_positions`` (symplectic Euler, conservative rotation,
+   finite guard), ``relax`` (one rigid sweep without position bias)
+5. ``relax``        restitution pass, impulses stored for the next step
 
 Python only orchestrates: the cost of a step is a fixed number of kernel
-launches (plus one per colour per iteration for ``pgs-colored``, and one per
-iteration for the Jacobi family), and two small reads: buffer counters after
-the narrowphase (a buffer that overflowed is grown and the step redone from the
-saved state) and the error bits at the end (non-finite state: the last good
-state is restored and a SimulationError names the body and the stage).
-``substeps`` repeats the whole step with dt / substeps.
+launches per substep (one per colour per sweep for ``pgs-colored``), plus two
+small reads: buffer counters after the narrowphase (a buffer that overflowed is
+grown and the step redone from the saved state) and the error bits at the end
+(non-finite state: the last good state is restored and a SimulationError names
+the body and the stage). ``[world] substeps`` repeats the whole step, collision
+included, with dt / substeps.
 """
 
 from __future__ import annotations
