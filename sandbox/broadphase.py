@@ -21,7 +21,7 @@ import numpy as np
 import taichi as ti
 
 from .math3d import quat_rotate, quat_to_mat
-from .prefix_sum import Scanner, exclusive_scan
+from .prefix_sum import Scanner, exclusive_scan, sort_range
 
 vec3 = ti.math.vec3
 ivec3 = ti.math.ivec3
@@ -181,16 +181,7 @@ def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.temp
         slot = bp.bucket_start[h] + ti.atomic_add(bp.bucket_fill[h], 1)
         bp.sorted_shape[slot] = bp.entry_shape[e]
     for h in range(bp.hash_size):
-        # insertion sort by shape id: the fill above is in thread order
-        s0 = bp.bucket_start[h]
-        s1 = bp.bucket_start[h + 1]
-        for u in range(s0 + 1, s1):
-            v = bp.sorted_shape[u]
-            w = u - 1
-            while w >= s0 and bp.sorted_shape[w] > v:
-                bp.sorted_shape[w + 1] = bp.sorted_shape[w]
-                w -= 1
-            bp.sorted_shape[w + 1] = v
+        sort_range(bp.sorted_shape, bp.bucket_start[h], bp.bucket_start[h + 1])  # the fill is in thread order
 
 
 @ti.func
@@ -200,49 +191,45 @@ def _overlap(bp: ti.template(), i: ti.i32, j: ti.i32) -> ti.i32:
 
 
 @ti.func
-def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i32, write: ti.template()) -> ti.i32:
-    i = shapes.dynamic_ids[k]
-    body_i = shapes.body[i]
+def _visit_grid(bp: ti.template(), shapes: ti.template(), i: ti.i32, cell: ti.f32, mask: ti.i32,
+                starts: ti.template(), entries: ti.template(), dynamic: ti.template(), base: ti.i32, found: ti.i32,
+                write: ti.template()) -> ti.i32:
+    """Partners of shape i in one grid: overlapping AABBs, each pair once (in the cell holding
+    the minimum corner of the intersection). In the dynamic grid only partners j > i of
+    another body count, so each dynamic pair is listed by its lower shape."""
     lo, hi = bp.aabb_min[i], bp.aabb_max[i]
-    found = 0
-    # dynamic partners j > i
-    cell = bp.cell_size[None]
-    mask = bp.hash_size - 1
+    body_i = shapes.body[i]
+    count = found
     a, b = _cell_range(lo, hi, cell)
     for x in range(a[0], b[0] + 1):
         for y in range(a[1], b[1] + 1):
             for z in range(a[2], b[2] + 1):
                 c = ivec3(x, y, z)
                 h = cell_hash(c, mask)
-                for e in range(bp.bucket_start[h], bp.bucket_start[h + 1]):
-                    j = bp.sorted_shape[e]
-                    if j > i and shapes.body[j] != body_i and _overlap(bp, i, j):
+                for e in range(starts[h], starts[h + 1]):
+                    j = entries[e]
+                    wanted = True
+                    if ti.static(dynamic):
+                        wanted = j > i and shapes.body[j] != body_i
+                    if wanted and _overlap(bp, i, j):
                         ref = ti.cast(ti.floor(ti.max(lo, bp.aabb_min[j]) / cell), ti.i32)
                         if (ref == c).all():
                             if ti.static(write):
-                                if base + found < bp.pair_capacity:
-                                    bp.pair_a[base + found] = i
-                                    bp.pair_b[base + found] = j
-                            found += 1
-    # static partners
-    scell = bp.static_cell_size[None]
-    smask = bp.static_hash_size - 1
-    sa, sb = _cell_range(lo, hi, scell)
-    for x in range(sa[0], sb[0] + 1):
-        for y in range(sa[1], sb[1] + 1):
-            for z in range(sa[2], sb[2] + 1):
-                c = ivec3(x, y, z)
-                h = cell_hash(c, smask)
-                for e in range(bp.static_bucket_start[h], bp.static_bucket_start[h + 1]):
-                    j = bp.static_entries[e]
-                    if _overlap(bp, i, j):
-                        ref = ti.cast(ti.floor(ti.max(lo, bp.aabb_min[j]) / scell), ti.i32)
-                        if (ref == c).all():
-                            if ti.static(write):
-                                if base + found < bp.pair_capacity:
-                                    bp.pair_a[base + found] = i
-                                    bp.pair_b[base + found] = j
-                            found += 1
+                                if base + count < bp.pair_capacity:
+                                    bp.pair_a[base + count] = i
+                                    bp.pair_b[base + count] = j
+                            count += 1
+    return count
+
+
+@ti.func
+def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i32, write: ti.template()) -> ti.i32:
+    i = shapes.dynamic_ids[k]
+    lo, hi = bp.aabb_min[i], bp.aabb_max[i]
+    found = _visit_grid(bp, shapes, i, bp.cell_size[None], bp.hash_size - 1, bp.bucket_start, bp.sorted_shape, True,
+                        base, 0, write)
+    found = _visit_grid(bp, shapes, i, bp.static_cell_size[None], bp.static_hash_size - 1, bp.static_bucket_start,
+                        bp.static_entries, False, base, found, write)
     # planes
     for p in range(shapes.plane_count[None]):
         n = shapes.plane_normal[p]

@@ -1,4 +1,4 @@
-"""Deterministic exclusive prefix sum over an i32 field, the same code on CPU and CUDA.
+"""Deterministic exclusive prefix sum (and short-range sort) over i32 fields, the same code on CPU and CUDA.
 
 Taichi's ``PrefixSumExecutor`` supports CUDA/Vulkan only (apis.md 4.4), so we
 scan in three loops: per-block sums in parallel, a short serial scan over the
@@ -11,6 +11,19 @@ and integer addition makes the result independent of thread scheduling.
 import taichi as ti
 
 BLOCK = 256
+
+
+@ti.func
+def sort_range(values: ti.template(), start: ti.i32, end: ti.i32):
+    """Insertion sort of values[start:end] in place: the short per-bucket / per-body lists
+    that parallel fills leave in thread order are put in a fixed order (determinism)."""
+    for u in range(start + 1, end):
+        v = values[u]
+        w = u - 1
+        while w >= start and values[w] > v:
+            values[w + 1] = values[w]
+            w -= 1
+        values[w + 1] = v
 
 
 @ti.data_oriented

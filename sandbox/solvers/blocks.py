@@ -27,7 +27,7 @@ Per body, ``scale`` multiplies inverse mass and inertia inside a block and
 
 import taichi as ti
 
-from ..prefix_sum import Scanner, exclusive_scan
+from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .rows import point_impulse, solve_point
 
 vec3 = ti.math.vec3
@@ -107,13 +107,7 @@ def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), k
     for i in range(nb):
         e0 = s.adj_start[i]
         e1 = s.adj_start[i + 1]
-        for u in range(e0 + 1, e1):
-            v = s.adj[u]
-            w = u - 1
-            while w >= e0 and s.adj[w] > v:
-                s.adj[w + 1] = s.adj[w]
-                w -= 1
-            s.adj[w + 1] = v
+        sort_range(s.adj, e0, e1)
         deg = ti.max(e1 - e0, 1)
         ti.atomic_max(s.max_degree[None], e1 - e0)
         if ti.static(mode == MODE_SPLIT):
