@@ -52,6 +52,10 @@ class World:
         self.gravity = np.asarray(scene.world.gravity, dtype=np.float32)
         self.profiler = Profiler(profile)
         self.step_count = 0
+        self.record_residuals = False
+        """When True, ``residual_history`` holds the RMS LCP residual [m/s] after every biased
+        sweep of the last step (one device read per sweep: for convergence plots, not speed)."""
+        self.residual_history: list[float] = []
         from .build import host_world
 
         self._host = host_world(scene, self.settings)
@@ -109,6 +113,7 @@ class World:
         save_good_state(b.bodies)
         b.errors.clear()
         update_world_inertia(b.bodies)
+        self.residual_history = []
         for attempt in range(MAX_GROWTH_RETRIES + 1):
             self._collide()
             if not self._grow_if_needed():
@@ -130,6 +135,8 @@ class World:
                     self._warm_start()
                 for _ in range(s.sweeps):
                     self._sweep(BIASED)
+                    if self.record_residuals:
+                        self.residual_history.append(self._residual_rms())
             with p.stage("integrate_positions"):
                 integrate_positions(b.bodies, h_sub, b.errors)
             with p.stage("relax"):
@@ -240,10 +247,10 @@ class World:
 
     def metrics(self) -> dict[str, float]:
         from .metrics import KE, MAX_PEN, RES_MAX_SQ, RES_SQ_SUM, SUM_PEN, compute_metrics
-        from .solvers.rows import compute_residuals
+        from .solvers.rows import RELAX, compute_residuals
 
         b = self.buf
-        compute_residuals(b.rows, b.contacts, b.bodies)
+        compute_residuals(b.rows, b.contacts, b.bodies, RELAX)  # the step ends with the rigid relax
         compute_metrics(b.metrics, b.bodies, b.contacts, b.rows)
         v = b.metrics.values.to_numpy().astype(np.float64)
         n = int(b.contacts.count[None])
@@ -261,6 +268,17 @@ class World:
         if self.solver == "pgs-colored":
             out["colors"] = int(getattr(self, "last_color_count", 0))
         return out
+
+    def _residual_rms(self) -> float:
+        """RMS residual of the biased problem the sweeps are solving right now."""
+        from .metrics import RES_SQ_SUM, compute_metrics
+        from .solvers.rows import BIASED, compute_residuals
+
+        b = self.buf
+        compute_residuals(b.rows, b.contacts, b.bodies, BIASED)
+        compute_metrics(b.metrics, b.bodies, b.contacts, b.rows)
+        n = int(b.contacts.count[None])
+        return float(np.sqrt(b.metrics.values[RES_SQ_SUM] / (3 * n))) if n else 0.0
 
     def contacts(self) -> dict[str, np.ndarray]:
         """This step's contact points: body_a, body_b, point (world) [m], normal (a to b),

@@ -122,6 +122,23 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
 
 
 @ti.func
+def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32, mode: ti.template()):
+    """(target velocity b, compliance gamma) of point q's normal row: the row asks for
+    n . v_rel + b + gamma lambda >= 0. Gaps are rigid speculative targets s / h; a
+    penetration gets the soft spring in BIASED mode and nothing in RELAX mode."""
+    target = 0.0
+    gamma = 0.0
+    s = current_separation(rows, c, bodies, q)
+    if s > 0.0:
+        target = s * rows.params[INV_H]
+    elif ti.static(mode == BIASED):
+        slop = rows.params[SLOP]
+        target = ti.max(rows.params[BIAS_RATE] * ti.min(s + slop, 0.0), -rows.params[MAX_PUSH])
+        gamma = rows.params[SOFTNESS] * (rows.k_a[q][0] + rows.k_b[q][0])
+    return target, gamma
+
+
+@ti.func
 def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32,
                 va: vec3, wa: vec3, vb: vec3, wb: vec3, sa: ti.f32, sb: ti.f32, mode: ti.template()):
     """Friction rows then the normal row of point q, on velocity copies.
@@ -174,13 +191,7 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
         active = e > 0.0 and vn0 < -rows.params[RESTITUTION_THRESHOLD] and lam[0] > 0.0
         target = e * vn0
     else:
-        s = current_separation(rows, c, bodies, q)
-        if s > 0.0:
-            target = s * rows.params[INV_H]
-        elif ti.static(mode == BIASED):
-            slop = rows.params[SLOP]
-            target = ti.max(rows.params[BIAS_RATE] * ti.min(s + slop, 0.0), -rows.params[MAX_PUSH])
-            gamma = rows.params[SOFTNESS] * (rows.k_a[q][0] + rows.k_b[q][0])
+        target, gamma = normal_target(rows, c, bodies, q, mode)
     if active:
         dv = vb + wb.cross(rb) - va - wa.cross(ra)
         ln = ti.max(lam[0] - (dv.dot(n) + target + gamma * lam[0]) / (k[0] + gamma), 0.0)
@@ -201,9 +212,9 @@ def point_impulse(rows: ti.template(), c: ti.template(), q: ti.i32) -> vec3:
 
 
 @ti.kernel
-def compute_residuals(rows: ti.template(), c: ti.template(), bodies: ti.template()):
+def compute_residuals(rows: ti.template(), c: ti.template(), bodies: ti.template(), mode: ti.template()):
     """Per point squared natural-map residual of the velocity-level LCP (method.md M1/M2) of
-    the last problem the step solved: rigid rows with speculative gap targets (the relax)."""
+    the BIASED (soft) or RELAX (rigid) problem: w = n . v_rel + b + gamma lambda."""
     for q in range(c.count[None]):
         a = c.body_a[q]
         b = c.body_b[q]
@@ -212,9 +223,9 @@ def compute_residuals(rows: ti.template(), c: ti.template(), bodies: ti.template
         dv = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
         k = rows.k_a[q] + rows.k_b[q]
         lam = rows.lam[q]
-        s = current_separation(rows, c, bodies, q)
-        w = dv.dot(c.normal[q]) + ti.max(s, 0.0) * rows.params[INV_H]
-        rn = ti.min(w, k[0] * lam[0])
+        target, gamma = normal_target(rows, c, bodies, q, mode)
+        w = dv.dot(c.normal[q]) + target + gamma * lam[0]
+        rn = ti.min(w, (k[0] + gamma) * lam[0])
         # friction: distance of lambda_t from the projection of its gradient step onto the disk
         g1 = lam[1] - dv.dot(rows.t1[q]) / k[1]
         g2 = lam[2] - dv.dot(rows.t2[q]) / k[2]

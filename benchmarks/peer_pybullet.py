@@ -1,0 +1,108 @@
+"""Our solvers and pybullet on the same scene, same dt and iteration count, in one run.
+
+    pip install -e ".[peers]"
+    python benchmarks/peer_pybullet.py [--scene pile_1000] [--iterations 15] [--settle 120] [--steps 60]
+                                       [--solvers pgs,mass-splitting,block-mass-splitting]
+
+pybullet is set up as the anchors in the team's RESULTS.md were: boxes as maximal-coordinate
+rigid bodies with the scene's masses and half extents, a static plane, friction sqrt(0.5) per
+body (Bullet multiplies the two coefficients, so every pair gets 0.5), no damping, no sleeping,
+``numSolverIterations`` = iterations. Both engines settle ``--settle`` steps, then ``--steps``
+steps are timed (our step includes collision, as ``stepSimulation`` does). Only box-and-plane
+scenes are translated. Prints steps/s of each, the ratio, and the mean kinetic energy of the
+last 60 steps (the jitter measure), computed the same way for both.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from sandbox import Scene, World
+
+
+def pybullet_world(scene: Scene, iterations: int):
+    import pybullet as pb
+
+    cid = pb.connect(pb.DIRECT)
+    pb.setGravity(*scene.world.gravity, physicsClientId=cid)
+    pb.setTimeStep(scene.world.dt, physicsClientId=cid)
+    pb.setPhysicsEngineParameter(numSolverIterations=iterations, physicsClientId=cid)
+    mu = float(np.sqrt(0.5))
+    for plane in scene.planes:
+        shape = pb.createCollisionShape(pb.GEOM_PLANE, planeNormal=list(plane.normal), physicsClientId=cid)
+        pid = pb.createMultiBody(0, shape, basePosition=list(np.asarray(plane.normal) * plane.offset),
+                                 physicsClientId=cid)
+        pb.changeDynamics(pid, -1, lateralFriction=mu, physicsClientId=cid)
+    ids, masses, inertias = [], [], []
+    for body in scene.bodies:
+        if len(body.shapes) != 1 or body.shapes[0].kind != "box":
+            raise SystemExit("only box-and-plane scenes are translated to pybullet")
+        h = body.shapes[0].half_extents
+        shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=list(h), physicsClientId=cid)
+        w, x, y, z = body.orientation
+        bid = pb.createMultiBody(body.mass, shape, basePosition=list(body.position), baseOrientation=[x, y, z, w],
+                                 useMaximalCoordinates=True, physicsClientId=cid)
+        pb.changeDynamics(bid, -1, lateralFriction=mu, linearDamping=0.0, angularDamping=0.0,
+                          activationState=pb.ACTIVATION_STATE_DISABLE_SLEEPING, physicsClientId=cid)
+        ids.append(bid)
+        masses.append(body.mass)
+        inertias.append(np.diag(body.inertia))
+    return pb, cid, ids, np.asarray(masses), np.asarray(inertias)
+
+
+def pybullet_ke(pb, cid, ids, masses, inertias) -> float:
+    ke = 0.0
+    for bid, m, inertia in zip(ids, masses, inertias):
+        v, w = pb.getBaseVelocity(bid, physicsClientId=cid)
+        q = pb.getBasePositionAndOrientation(bid, physicsClientId=cid)[1]
+        r = np.asarray(pb.getMatrixFromQuaternion(q)).reshape(3, 3)
+        wb = r.T @ np.asarray(w)
+        ke += 0.5 * m * np.dot(v, v) + 0.5 * np.dot(wb, inertia * wb)
+    return ke
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scene", default="pile_1000")
+    ap.add_argument("--iterations", type=int, default=15)
+    ap.add_argument("--settle", type=int, default=120)
+    ap.add_argument("--steps", type=int, default=60)
+    ap.add_argument("--solvers", default="pgs,mass-splitting,block-mass-splitting")
+    a = ap.parse_args()
+    scene = Scene.load(f"scenes/{a.scene}.toml")
+    pb, cid, ids, masses, inertias = pybullet_world(scene, a.iterations)
+    for _ in range(a.settle):
+        pb.stepSimulation(physicsClientId=cid)
+    t = time.perf_counter()
+    for _ in range(a.steps):
+        pb.stepSimulation(physicsClientId=cid)
+    pb_rate = a.steps / (time.perf_counter() - t)
+    ke = []
+    for _ in range(60):
+        pb.stepSimulation(physicsClientId=cid)
+        ke.append(pybullet_ke(pb, cid, ids, masses, inertias))
+    print(f"{a.scene}, {a.iterations} iterations, settle {a.settle}, timed {a.steps} steps")
+    print(f"{'pybullet 3.2.7':24s} {pb_rate:8.1f} steps/s   KE(last 60) {np.mean(ke):.3e} J")
+    import taichi as ti
+
+    for solver in a.solvers.split(","):
+        world = World(scene, solver=solver, iterations=a.iterations, arch="cpu")
+        world.step(a.settle)
+        ti.sync()
+        t = time.perf_counter()
+        world.step(a.steps)
+        ti.sync()
+        rate = a.steps / (time.perf_counter() - t)
+        ke = []
+        for _ in range(60):
+            world.step(1)
+            ke.append(world.metrics()["kinetic_energy"])
+        print(f"{solver:24s} {rate:8.1f} steps/s   KE(last 60) {np.mean(ke):.3e} J   "
+              f"ratio to pybullet {rate / pb_rate:.2f}x", flush=True)
+
+
+if __name__ == "__main__":
+    main()
