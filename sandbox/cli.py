@@ -1,4 +1,5 @@
-"""The ``sandbox`` command: ``run`` a scene headless, list the shipped ``scenes``."""
+"""The ``sandbox`` command: ``run`` a scene headless (optionally recording it), ``replay`` a
+recording, list the shipped ``scenes``."""
 
 from __future__ import annotations
 
@@ -36,16 +37,26 @@ def cmd_run(args) -> int:
         options["shuffle"] = True
     t0 = time.perf_counter()
     world = World(scene, solver=args.solver, iterations=args.iterations, arch=args.arch, profile=True, **options)
-    world.step(1)  # compile every kernel before timing
+    if args.record:
+        world.step(0)
+    else:
+        world.step(1)  # compile every kernel before timing (a recording starts at step 0)
     world.profiler.reset()
     build_s = time.perf_counter() - t0
     steps = args.steps
     series = {"kinetic_energy": [], "max_penetration": [], "contacts": []}
+    recorder = None
+    if args.record:
+        from .recording import Recorder
+
+        recorder = Recorder(world, path)
     wall = 0.0
     for _ in tqdm(range(steps), desc=f"{path.stem} / {world.solver}", unit="step", disable=args.quiet):
         t = time.perf_counter()
         world.step(1)
         wall += time.perf_counter() - t
+        if recorder is not None:
+            recorder.capture()
         m = world.metrics()
         for k in series:
             series[k].append(m[k])
@@ -80,7 +91,22 @@ def cmd_run(args) -> int:
     if args.report:
         Path(args.report).write_text(json.dumps(report, indent=1))
         print(f"report     {args.report}")
+    if recorder is not None:
+        size = recorder.save(args.record)
+        print(f"recording  {args.record}: {len(recorder._frames)} frames, {size / 1e6:.2f} MB")
     return 0
+
+
+def cmd_replay(args) -> int:
+    from .recording import replay
+
+    result = replay(args.file, arch=args.arch)
+    if result["first_departure"] is None:
+        print(f"replay     {args.file}: {result['frames']} frames identical bit for bit")
+        return 0
+    print(f"replay     {args.file}: departs from the recording at frame {result['first_departure']} "
+          f"(max difference {result['max_difference']:.3g})")
+    return 1
 
 
 def cmd_scenes(args) -> int:
@@ -110,7 +136,12 @@ def main(argv=None) -> int:
     run.add_argument("--shuffle", action="store_true", help="pgs-colored: permute contacts and colours every step")
     run.add_argument("--report", metavar="FILE.json", help="write a JSON report with timings and per-step series")
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--record", metavar="FILE", help="record scene, settings, events and every frame's transforms")
     run.set_defaults(func=cmd_run)
+    rep = sub.add_parser("replay", help="re-simulate a recording and report where it departs, if anywhere")
+    rep.add_argument("file")
+    rep.add_argument("--arch", choices=["cpu", "cuda"], default="cpu")
+    rep.set_defaults(func=cmd_replay)
     scenes = sub.add_parser("scenes", help="list the shipped scenes")
     scenes.set_defaults(func=cmd_scenes)
     args = parser.parse_args(argv)

@@ -58,8 +58,16 @@ class World:
         self.residual_history: list[float] = []
         from .build import host_world
 
+        self._bodies = list(scene.bodies)  # the live body list (events add and remove)
+        self._pending = sorted(scene.events, key=lambda e: e.time)  # stable: file order on ties
+        self.applied_events: list[tuple[int, object]] = []
+        """(step, EventSpec) of every event applied so far, scripted or interactive: what a
+        recording stores so that a replay applies exactly the same edits."""
         self._host = host_world(scene, self.settings)
         self.kinds = self._host.kinds
+        effects = tuple(getattr(scene, "effects", ("friction", "restitution")))
+        self.friction = "friction" in effects  # compile-time: friction rows exist only if asked for
+        self.restitution = "restitution" in effects
         self.body_count = len(scene.bodies)
         self._acquire(self._host.capacities())
         opts = dict(scene.solver.options)
@@ -89,12 +97,103 @@ class World:
         self.solver = name
         self.iterations = iterations
 
+    # ------------------------------------------------------------------ edits and events
+    def apply_event(self, event) -> None:
+        """Apply one timeline event now (between steps) and log it for recordings."""
+        from .timeline import apply_event
+
+        apply_event(self, event)
+        self.applied_events.append((self.step_count, event))
+
+    def add_bodies(self, bodies: list) -> list[int]:
+        """Append bodies (BodySpecs) to the world; returns their indices. Body state is kept;
+        warm-start impulses are dropped once (the contact buffer is rebuilt)."""
+        first = len(self._bodies)
+        self._rebuild(self._live_specs() + list(bodies))
+        return list(range(first, first + len(bodies)))
+
+    def remove_bodies(self, indices) -> None:
+        """Remove bodies; the bodies after them move down to close the gaps."""
+        drop = set(self._check_indices(indices, "remove"))
+        self._rebuild([b for i, b in enumerate(self._live_specs()) if i not in drop])
+
+    def set_velocity(self, indices, linear=None, angular=None) -> None:
+        """Set the linear [m/s] and/or angular [rad/s, world] velocity of dynamic bodies."""
+        idx = self._check_indices(indices, "set_velocity", dynamic=True)
+        b = self.buf.bodies
+        for name, value in (("lin_vel", linear), ("ang_vel", angular)):
+            if value is not None:
+                v = _finite_vector(value, name)
+                field = getattr(b, name)
+                arr = field.to_numpy()
+                arr[idx] = v
+                field.from_numpy(arr)
+
+    def apply_impulse(self, indices, impulse, point=None) -> None:
+        """Apply a world-frame impulse [N s] at ``point`` (world, default the centre of mass)."""
+        idx = self._check_indices(indices, "impulse", dynamic=True)
+        j = _finite_vector(impulse, "impulse")
+        b = self.buf.bodies
+        v, w = b.lin_vel.to_numpy(), b.ang_vel.to_numpy()
+        pos, rot, inv_i = b.pos.to_numpy(), b.rot.to_numpy(), b.inv_inertia.to_numpy()
+        inv_m = b.inv_mass.to_numpy()
+        for i in idx:
+            v[i] += inv_m[i] * j
+            if point is not None:
+                from .build import _quat_mat
+
+                r = _quat_mat(rot[i].astype(np.float64))
+                arm = _finite_vector(point, "point") - pos[i]
+                w[i] += (r @ inv_i[i] @ r.T) @ np.cross(arm, j)
+        b.lin_vel.from_numpy(v)
+        b.ang_vel.from_numpy(w)
+
+    def _check_indices(self, indices, what: str, dynamic: bool = False) -> list[int]:
+        idx = [indices] if isinstance(indices, (int, np.integer)) else list(indices)
+        n = len(self._bodies)
+        for i in idx:
+            if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < n:
+                raise SandboxError(f"{what}: no body {i!r} (the world has bodies 0..{n - 1})")
+            if dynamic and self._bodies[i].static:
+                raise SandboxError(f"{what}: body {i}{self.body_name(i)} is static and cannot be moved")
+        return [int(i) for i in idx]
+
+    def _live_specs(self) -> list:
+        """The current body list with positions and velocities read back from the device."""
+        import dataclasses
+
+        st = self.state()
+        return [dataclasses.replace(b, position=st["position"][i].astype(np.float64),
+                                    orientation=st["orientation"][i].astype(np.float64),
+                                    linear_velocity=st["linear_velocity"][i].astype(np.float64),
+                                    angular_velocity=st["angular_velocity"][i].astype(np.float64))
+                for i, b in enumerate(self._bodies)]
+
+    def _rebuild(self, bodies: list) -> None:
+        import dataclasses
+
+        from .build import host_world, upload
+
+        self._bodies = bodies
+        self._host = host_world(dataclasses.replace(self.scene, bodies=bodies), self.settings)
+        self.kinds = self._host.kinds
+        self.body_count = len(bodies)
+        old = self.buf.caps
+        caps = self._host.capacities(pairs=old.pairs, grid_entries=old.grid_entries)
+        if caps == old:
+            upload(self._host, self.buf, self.settings.contact_margin)
+        else:
+            self.close()
+            self._acquire(caps)
+
     # ------------------------------------------------------------------ stepping
     def step(self, n: int = 1) -> None:
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
             raise SandboxError(f"step count must be a non-negative integer, got {n!r}")
         h = self.dt / self.substeps
         for _ in range(int(n)):
+            while self._pending and int(round(self._pending[0].time / self.dt)) <= self.step_count:
+                self.apply_event(self._pending.pop(0))
             for _ in range(self.substeps):
                 self._substep(h)
             self.step_count += 1
@@ -143,7 +242,7 @@ class World:
                 for _ in range(s.sweeps):
                     self._sweep(RELAX)
         with p.stage("relax"):
-            if self._host.has_restitution:
+            if self.restitution and self._host.has_restitution:
                 self._sweep(RESTITUTION)
             check_velocities(b.bodies, b.errors)
             store_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, k)
@@ -221,21 +320,22 @@ class World:
         from .solvers import blocks, pgs
 
         kind, b, rows, c, bodies = self._schedule()
+        fr = self.friction
         if self.solver == "pgs":
-            pgs.pgs_serial(rows, c, bodies, 1, mode)
+            pgs.pgs_serial(rows, c, bodies, 1, mode, fr)
         elif self.solver == "pgs-colored":
             col, starts, overflow = self.buf.coloring, self._color_starts, pgs.MAX_COLORS
             for k in range(self.last_color_count):
-                pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]), mode)
+                pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]), mode, fr)
             if starts[overflow + 1] > starts[overflow]:
-                pgs.solve_overflow(rows, c, bodies, col, int(starts[overflow]), int(starts[overflow + 1]), mode)
+                pgs.solve_overflow(rows, c, bodies, col, int(starts[overflow]), int(starts[overflow + 1]), mode, fr)
         else:
-            blocks.jacobi_sweep(b, rows, c, bodies, kind, mode)
+            blocks.jacobi_sweep(b, rows, c, bodies, kind, mode, fr)
 
     # ------------------------------------------------------------------ queries
     def body_name(self, i: int) -> str:
-        if 0 <= i < self.body_count and self.scene.bodies[i].name:
-            return f" ({self.scene.bodies[i].name!r})"
+        if 0 <= i < len(self._bodies) and self._bodies[i].name:
+            return f" ({self._bodies[i].name!r})"
         return ""
 
     def state(self) -> dict[str, np.ndarray]:
@@ -298,3 +398,13 @@ class World:
 
     def timing_ms(self) -> dict[str, float]:
         return self.profiler.mean_ms()
+
+
+def _finite_vector(value, what: str) -> np.ndarray:
+    try:
+        v = np.asarray(value, dtype=np.float64).reshape(3)
+    except (TypeError, ValueError):
+        raise SandboxError(f"{what} must be three numbers, got {value!r}") from None
+    if not np.all(np.isfinite(v)):
+        raise SandboxError(f"{what} must be finite, got {value!r}")
+    return v

@@ -6,7 +6,7 @@ nothing here imports Taichi, so scenes load, validate and expand without a runti
 
 from .loader import GENERATOR_KINDS, MAX_BODIES, SOLVER_NAMES, load_scene, scene_from_dict
 from .massprops import MassProperties, body_mass_properties
-from .spec import BodySpec, MeshSpec, PlaneSpec, Scene, ShapeSpec, SolverSpec, WorldSpec
+from .spec import BodySpec, EventSpec, MeshSpec, PlaneSpec, Scene, ShapeSpec, SolverSpec, WorldSpec
 
 __all__ = [
     "Scene",
@@ -15,6 +15,7 @@ __all__ = [
     "PlaneSpec",
     "MeshSpec",
     "WorldSpec",
+    "EventSpec",
     "SolverSpec",
     "load_scene",
     "scene_from_dict",

@@ -69,11 +69,32 @@ class MeshSpec:
 
 
 @dataclass
+class EventSpec:
+    """One timeline entry, applied between steps at step round(time / dt), identically headless
+    and in the web sandbox. ``bodies`` indexes the body list as it is when the event applies:
+    scene bodies first, bodies added by earlier ``drop`` events after them, removals closing
+    the gaps (the loader replays the timeline to check every index)."""
+
+    time: float  # [s] >= 0, and <= the scene's duration when it has one
+    kind: str  # "drop" | "set_velocity" | "impulse" | "remove" | "solver" | "iterations"
+    new_bodies: list = field(default_factory=list)  # drop: BodySpecs (generated, seeded)
+    bodies: list = field(default_factory=list)  # set_velocity / impulse / remove: body indices
+    linear_velocity: np.ndarray | None = None  # set_velocity [m/s]; None keeps it
+    angular_velocity: np.ndarray | None = None  # set_velocity [rad/s]; None keeps it
+    impulse: np.ndarray | None = None  # impulse [N s], world frame
+    point: np.ndarray | None = None  # impulse: world point of application [m]; None = centre of mass
+    solver: str | None = None  # solver: the new solver's name
+    iterations: int | None = None  # solver / iterations: the new iteration count
+    options: dict = field(default_factory=dict)  # solver: its options
+
+
+@dataclass
 class WorldSpec:
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -9.81]))  # [m/s^2]
     dt: float = 1.0 / 60.0  # [s] time step
     substeps: int = 1  # the whole collide-solve-integrate step runs this many times per step
     contact_hertz: float | None = None  # [Hz] contact stiffness; None: Settings.contact_hertz
+    duration: float | None = None  # [s] how long the scene is meant to run (events must fall inside)
 
 
 @dataclass
@@ -91,6 +112,8 @@ class Scene:
     bodies: list[BodySpec] = field(default_factory=list)
     planes: list[PlaneSpec] = field(default_factory=list)
     meshes: list[MeshSpec] = field(default_factory=list)
+    events: list[EventSpec] = field(default_factory=list)  # sorted by time, stable
+    effects: tuple = ("friction", "restitution")  # what the scene calls for; others compile away
     description: str = ""
 
     @classmethod

@@ -153,7 +153,7 @@ def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: 
 
 @ti.kernel
 def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-                 mode: ti.template()):
+                 mode: ti.template(), friction: ti.template()):
     """One parallel sweep over all blocks from the same velocities, then the per-body merge."""
     for k in range(s.block_count[None]):
         start, count, a, b = block_range(c, k, kind)
@@ -163,7 +163,7 @@ def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
         sa = s.scale[a]
         sb = s.scale[b]
         for q in range(start, start + count):
-            va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, sa, sb, mode)
+            va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, sa, sb, mode, friction)
         s.slot_dv[2 * k] = (va - va0) * s.weight[a]
         s.slot_dw[2 * k] = (wa - wa0) * s.weight[a]
         s.slot_dv[2 * k + 1] = (vb - vb0) * s.weight[b]

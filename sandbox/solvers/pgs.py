@@ -24,13 +24,13 @@ MAX_COLORS = 64
 
 
 @ti.func
-def solve_manifold(rows: ti.template(), c: ti.template(), bodies: ti.template(), m: ti.i32, mode: ti.template()):
+def solve_manifold(rows: ti.template(), c: ti.template(), bodies: ti.template(), m: ti.i32, mode: ti.template(), friction: ti.template()):
     a = c.m_body_a[m]
     b = c.m_body_b[m]
     va, wa = bodies.lin_vel[a], bodies.ang_vel[a]
     vb, wb = bodies.lin_vel[b], bodies.ang_vel[b]
     for q in range(c.m_start[m], c.m_start[m] + c.m_count[m]):
-        va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, 1.0, 1.0, mode)
+        va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, 1.0, 1.0, mode, friction)
     if bodies.inv_mass[a] > 0.0:
         bodies.lin_vel[a] = va
         bodies.ang_vel[a] = wa
@@ -41,11 +41,11 @@ def solve_manifold(rows: ti.template(), c: ti.template(), bodies: ti.template(),
 
 @ti.kernel
 def pgs_serial(rows: ti.template(), c: ti.template(), bodies: ti.template(), iterations: ti.i32,
-               mode: ti.template()):
+               mode: ti.template(), friction: ti.template()):
     ti.loop_config(serialize=True)
     for _ in range(iterations):
         for m in range(c.manifold_count[None]):
-            solve_manifold(rows, c, bodies, m, mode)
+            solve_manifold(rows, c, bodies, m, mode, friction)
 
 
 @ti.data_oriented
@@ -145,17 +145,17 @@ def color_manifolds(col: ti.template(), c: ti.template(), bodies: ti.template(),
 
 @ti.kernel
 def solve_color(rows: ti.template(), c: ti.template(), bodies: ti.template(), col: ti.template(), k0: ti.i32,
-                k1: ti.i32, mode: ti.template()):
+                k1: ti.i32, mode: ti.template(), friction: ti.template()):
     for idx in range(k0, k1):
-        solve_manifold(rows, c, bodies, col.sorted[idx], mode)
+        solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
 
 
 @ti.kernel
 def solve_overflow(rows: ti.template(), c: ti.template(), bodies: ti.template(), col: ti.template(), k0: ti.i32,
-                   k1: ti.i32, mode: ti.template()):
+                   k1: ti.i32, mode: ti.template(), friction: ti.template()):
     ti.loop_config(serialize=True)
     for idx in range(k0, k1):
-        solve_manifold(rows, c, bodies, col.sorted[idx], mode)
+        solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
 
 
 def color_ranges(col: Coloring) -> np.ndarray:

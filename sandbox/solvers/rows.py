@@ -140,7 +140,8 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
 
 @ti.func
 def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32,
-                va: vec3, wa: vec3, vb: vec3, wb: vec3, sa: ti.f32, sb: ti.f32, mode: ti.template()):
+                va: vec3, wa: vec3, vb: vec3, wb: vec3, sa: ti.f32, sb: ti.f32, mode: ti.template(),
+                friction: ti.template()):
     """Friction rows then the normal row of point q, on velocity copies.
 
     ``sa``/``sb`` scale body a's/b's inverse mass and inertia, both in the
@@ -150,6 +151,8 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
     The normal row goes last so non-penetration has the final word (Box2D v3).
     ``mode``: BIASED (soft, with position bias), RELAX (rigid, no bias) or
     RESTITUTION (normal row only, towards -e times the approach speed).
+    ``friction`` False (a scene without the friction effect) compiles the friction
+    rows away.
     """
     a = c.body_a[q]
     b = c.body_b[q]
@@ -162,7 +165,7 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
     n = c.normal[q]
     k = sa * rows.k_a[q] + sb * rows.k_b[q]
     lam = rows.lam[q]
-    if ti.static(mode != RESTITUTION):
+    if ti.static(mode != RESTITUTION and friction):
         t1 = rows.t1[q]
         t2 = rows.t2[q]
         dv = vb + wb.cross(rb) - va - wa.cross(ra)
