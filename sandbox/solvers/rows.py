@@ -50,6 +50,8 @@ class Rows:
         self.t2 = ti.Vector.field(3, ti.f32, c)
         self.k_a = ti.Vector.field(3, ti.f32, c)  # body a's unit response share for (n, t1, t2)
         self.k_b = ti.Vector.field(3, ti.f32, c)
+        self.ra_body = ti.Vector.field(3, ti.f32, c)  # anchors in the bodies' frames at the step start
+        self.rb_body = ti.Vector.field(3, ti.f32, c)
         self.approach = ti.field(ti.f32, c)  # [m/s] normal velocity before the step (restitution)
         # per-step constants of the row update: 1/h_sub, bias rate, softness 1/c, slop, max push
         self.params = ti.field(ti.f32, 8)
@@ -101,6 +103,8 @@ def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), i
         ib = bodies.inv_inertia_world[b]
         rows.ra[q] = ra
         rows.rb[q] = rb
+        rows.ra_body[q] = quat_rotate_inv(bodies.rot[a], ra)
+        rows.rb_body[q] = quat_rotate_inv(bodies.rot[b], rb)
         rows.t1[q] = t1
         rows.t2[q] = t2
         rows.k_a[q] = vec3(_share(ima, ia, ra, n), _share(ima, ia, ra, t1), _share(ima, ia, ra, t2))
@@ -116,8 +120,8 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
     b = c.body_b[q]
     ra = rows.ra[q]
     rb = rows.rb[q]
-    da = bodies.pos[a] - bodies.good_pos[a] + quat_rotate(bodies.rot[a], quat_rotate_inv(bodies.good_rot[a], ra)) - ra
-    db = bodies.pos[b] - bodies.good_pos[b] + quat_rotate(bodies.rot[b], quat_rotate_inv(bodies.good_rot[b], rb)) - rb
+    da = bodies.pos[a] - bodies.good_pos[a] + quat_rotate(bodies.rot[a], rows.ra_body[q]) - ra
+    db = bodies.pos[b] - bodies.good_pos[b] + quat_rotate(bodies.rot[b], rows.rb_body[q]) - rb
     return c.sep[q] + c.normal[q].dot(db - da)
 
 
