@@ -130,6 +130,17 @@ def shape_world_aabb(shapes: ti.template(), bodies: ti.template(), i: ti.i32, ma
     return center - ext, center + ext
 
 
+@ti.func
+def swept_distance(shapes: ti.template(), bodies: ti.template(), i: ti.i32, h: ti.f32) -> ti.f32:
+    """How far any point of shape i may move in time h [m] (0 for static shapes)."""
+    b = shapes.body[i]
+    d = 0.0
+    if bodies.inv_mass[b] > 0.0:
+        r = shapes.local_pos[i].norm() + shapes.bound[i]
+        d = h * (bodies.lin_vel[b].norm() + bodies.ang_vel[b].norm() * r)
+    return d
+
+
 @ti.kernel
 def compute_all_aabbs(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32):
     for i in range(shapes.count[None]):
@@ -146,12 +157,16 @@ def _cell_range(lo: vec3, hi: vec3, cell: ti.f32):
 
 
 @ti.kernel
-def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32):
+def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
+                       dt: ti.f32):
+    """``dt`` [s] is the step: each AABB also covers where its shape can get to during the step
+    (|v| dt + |w| r dt), so fast bodies find their partners and get speculative contacts
+    instead of tunnelling."""
     n = shapes.dynamic_count[None]
     cell = bp.cell_size[None]
     for k in range(n):
         i = shapes.dynamic_ids[k]
-        lo, hi = shape_world_aabb(shapes, bodies, i, margin)
+        lo, hi = shape_world_aabb(shapes, bodies, i, margin + swept_distance(shapes, bodies, i, dt))
         bp.aabb_min[i] = lo
         bp.aabb_max[i] = hi
         a, b = _cell_range(lo, hi, cell)

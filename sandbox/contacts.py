@@ -17,6 +17,7 @@ import taichi as ti
 from .math3d import quat_mul, quat_rotate
 from .narrowphase import collide_kinds
 from .narrowphase.manifold import MAX_POINTS, ShapePose
+from .broadphase import swept_distance
 from .prefix_sum import Scanner, exclusive_scan
 from .shapes import PLANE
 
@@ -40,6 +41,7 @@ class Contacts:
         self.raw_sep = ti.field(ti.f32, cc)
         self.raw_feature = ti.field(ti.i32, cc)
         self.has_points = ti.field(ti.i32, pc + 1)
+        self.raw_slop = ti.field(ti.f32, pc)
         self.point_start = ti.field(ti.i32, pc + 1)
         self.manifold_index = ti.field(ti.i32, pc + 1)
         self.count = ti.field(ti.i32, ())
@@ -57,6 +59,7 @@ class Contacts:
         self.sep = ti.field(ti.f32, cc)
         self.friction = ti.field(ti.f32, cc)
         self.restitution = ti.field(ti.f32, cc)
+        self.slop = ti.field(ti.f32, cc)  # [m] the pair's tolerated penetration
         # per manifold (= per touching shape pair): the block of block mass splitting
         self.m_body_a = ti.field(ti.i32, pc)
         self.m_body_b = ti.field(ti.i32, pc)
@@ -122,11 +125,16 @@ def partner_material(shapes: ti.template(), partner: ti.i32):
 
 @ti.kernel
 def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
-                  pool: ti.template(), margin: ti.f32, kinds: ti.template()):
+                  pool: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32, kinds: ti.template()):
     """Narrowphase over every candidate pair, then pack the points and manifolds.
 
-    ``kinds`` (the shape kinds the scene contains, a static tuple) keeps routines
-    for absent kinds out of the compiled kernel (house rule 8)."""
+    The pair's margin is the speculative distance (capped at a quarter of the smaller
+    shape's bound, so millimetre bodies stay sane) plus how far the two can close in
+    the step ``h``: points that may touch before the step ends are generated now and
+    the solver closes the gap exactly (speculative contacts: no tunnelling). The
+    slop is likewise capped at a tenth of the smaller bound. ``kinds`` (the shape
+    kinds the scene contains, a static tuple) keeps routines for absent kinds out of
+    the compiled kernel (house rule 8)."""
     n_pairs = ti.min(bp.pair_total[None], bp.pair_capacity)
     for p in range(n_pairs):
         i = bp.pair_a[p]
@@ -137,7 +145,12 @@ def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bo
             b = plane_pose(shapes, -1 - j)
         else:
             b = shape_pose(shapes, bodies, j)
-        pair_margin = ti.min(margin, 0.25 * ti.min(a.bound, b.bound))
+        small = ti.min(a.bound, b.bound)
+        swept = swept_distance(shapes, bodies, i, h)
+        if j >= 0:
+            swept += swept_distance(shapes, bodies, j, h)
+        pair_margin = ti.min(margin, 0.25 * small) + swept
+        c.raw_slop[p] = ti.min(slop, 0.1 * small)
         m = collide_kinds(pool, a, b, pair_margin, kinds)
         c.raw_count[p] = m.count
         c.has_points[p] = 1 if m.count > 0 else 0
@@ -179,6 +192,7 @@ def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bo
                 c.sep[q] = c.raw_sep[s]
                 c.friction[q] = mu
                 c.restitution[q] = e
+                c.slop[q] = c.raw_slop[p]
     for k in range(shapes.dynamic_count[None]):
         i = shapes.dynamic_ids[k]
         p0 = bp.pair_start[k]

@@ -191,6 +191,7 @@ class World:
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
             raise SandboxError(f"step count must be a non-negative integer, got {n!r}")
         h = self.dt / self.substeps
+        self._h = h
         for _ in range(int(n)):
             while self._pending and int(round(self._pending[0].time / self.dt)) <= self.step_count:
                 self.apply_event(self._pending.pop(0))
@@ -222,7 +223,7 @@ class World:
             raise CapacityError("contact buffers kept overflowing after growing; the scene is too dense")
         with p.stage("prepare"):
             bias_rate, softness = soft_contact_coefficients(h_sub, s.contact_hertz, s.contact_damping_ratio)
-            prepare_rows(b.rows, b.contacts, b.bodies, 1.0 / h_sub, bias_rate, softness, s.slop, s.max_push_speed,
+            prepare_rows(b.rows, b.contacts, b.bodies, 1.0 / h_sub, bias_rate, softness, s.max_push_speed,
                          s.restitution_threshold)
             match_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, s.match_distance, s.warm_start / k)
             self._prepare_schedule()
@@ -263,10 +264,10 @@ class World:
 
         b, p, margin = self.buf, self.profiler, self.settings.contact_margin
         with p.stage("broadphase"):
-            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin)
+            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, self._h)
             find_pairs(b.bp, b.shapes)
         with p.stage("narrowphase"):
-            collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, margin, self.kinds)
+            collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, margin, self.settings.slop, self._h, self.kinds)
 
     def _grow_if_needed(self) -> bool:
         """After an overflow: move to a bigger buffer class, keeping the body state, and say so."""

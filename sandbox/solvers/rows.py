@@ -53,7 +53,7 @@ class Rows:
         self.ra_body = ti.Vector.field(3, ti.f32, c)  # anchors in the bodies' frames at the step start
         self.rb_body = ti.Vector.field(3, ti.f32, c)
         self.approach = ti.field(ti.f32, c)  # [m/s] normal velocity before the step (restitution)
-        # per-step constants of the row update: 1/h_sub, bias rate, softness 1/c, slop, max push
+        # per-step constants of the row update: 1/h_sub, bias rate, softness 1/c, max push, restitution threshold
         self.params = ti.field(ti.f32, 8)
         self.lam = ti.Vector.field(3, ti.f32, c)  # accumulated impulses (n, t1, t2) [N s]
         self.residual = ti.field(ti.f32, c)  # squared LCP residual of the point's rows [(m/s)^2]
@@ -70,7 +70,7 @@ def soft_contact_coefficients(h: float, hertz: float, zeta: float) -> tuple[floa
     return omega / (2.0 * zeta + h * omega), 1.0 / c
 
 
-INV_H, BIAS_RATE, SOFTNESS, SLOP, MAX_PUSH, RESTITUTION_THRESHOLD = range(6)
+INV_H, BIAS_RATE, SOFTNESS, MAX_PUSH, RESTITUTION_THRESHOLD = range(5)
 BIASED, RELAX, RESTITUTION = 0, 1, 2
 
 
@@ -82,11 +82,10 @@ def _share(inv_mass: ti.f32, inv_inertia: ti.template(), r: vec3, e: vec3) -> ti
 
 @ti.kernel
 def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), inv_h: ti.f32, bias_rate: ti.f32,
-                 softness: ti.f32, slop: ti.f32, max_push: ti.f32, restitution_threshold: ti.f32):
+                 softness: ti.f32, max_push: ti.f32, restitution_threshold: ti.f32):
     rows.params[INV_H] = inv_h
     rows.params[BIAS_RATE] = bias_rate
     rows.params[SOFTNESS] = softness
-    rows.params[SLOP] = slop
     rows.params[MAX_PUSH] = max_push
     rows.params[RESTITUTION_THRESHOLD] = restitution_threshold
     for q in range(c.count[None]):
@@ -136,8 +135,7 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
     if s > 0.0:
         target = s * rows.params[INV_H]
     elif ti.static(mode == BIASED):
-        slop = rows.params[SLOP]
-        target = ti.max(rows.params[BIAS_RATE] * ti.min(s + slop, 0.0), -rows.params[MAX_PUSH])
+        target = ti.max(rows.params[BIAS_RATE] * ti.min(s + c.slop[q], 0.0), -rows.params[MAX_PUSH])
         gamma = rows.params[SOFTNESS] * (rows.k_a[q][0] + rows.k_b[q][0])
     return target, gamma
 
