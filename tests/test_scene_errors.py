@@ -45,7 +45,7 @@ CASES = [
     # unknown keys, listing the allowed ones
     ("unknown-top-key", {"bodies": []}, "bodies", "allowed keys: body, description"),
     ("unknown-body-key", _body(radius=1.0), "body[0].radius", "allowed keys:"),
-    ("unknown-world-key", {"world": {"gravty": [0, 0, -9.81]}}, "world.gravty", "allowed keys: contact_hertz, dt, gravity, substeps"),
+    ("unknown-world-key", {"world": {"gravty": [0, 0, -9.81]}}, "world.gravty", "allowed keys: contact_hertz, dt, duration, gravity, substeps"),
     ("unknown-solver-key", {"solver": {"omega": 1.0}}, "solver.omega", "unknown key 'omega'"),
     ("static-mass-not-allowed", _with("static", **BOX, mass=3.0), "static[0].mass", "unknown key 'mass'"),
     ("compound-part-friction", _body(shape="compound", half_extents=_DROP,
@@ -180,7 +180,7 @@ CASES = [
     ("seed-needed-jitter", _with("generate", kind="stack", count=2, size=1, position=[0, 0, 0], jitter=0.1),
      "generate[0].seed", "missing required key 'seed'"),
     ("grid-overlap", _with("generate", kind="grid", counts=[3, 1, 1], spacing=1.0, origin=[0, 0, 0],
-                           half_extents=[0.6, 0.1, 0.1]), "generate[0]", "overlap at t=0"),
+                           half_extents=[0.6, 0.1, 0.1]), "generate[0].spacing", "overlap at t=0"),
     ("weights-one-shape", _with("generate", kind="grid", counts=[1, 1, 1], spacing=1, origin=[0, 0, 0],
                                 half_extents=0.1, weights=[1.0]), "generate[0].weights", "at least two"),
     ("weights-zero", _with("generate", kind="grid", counts=[1, 1, 1], spacing=1, origin=[0, 0, 0],
@@ -296,8 +296,9 @@ def test_mesh_file_flat_hull(tmp_path):
 # ---------------------------------------------------------------------------- fuzz
 BASE = {
     "description": "fuzz base",
-    "world": {"gravity": [0.0, 0.0, -9.81], "dt": 0.01, "substeps": 2},
+    "world": {"gravity": [0.0, 0.0, -9.81], "dt": 0.01, "substeps": 2, "duration": 5.0},
     "solver": {"name": "pgs-colored", "iterations": 5, "shuffle": False, "seed": 1},
+    "effects": ["friction", "restitution"],
     "static": [
         {"shape": "plane", "normal": [0.0, 0.0, 1.0], "offset": 0.0, "friction": 0.5, "restitution": 0.0},
         {"shape": "mesh", "name": "hf", "position": [0.0, 0.0, -1.0],
@@ -324,6 +325,19 @@ BASE = {
         {"kind": "grid", "counts": [2, 2, 2], "spacing": [1.5, 1.5, 1.5], "origin": [-5.0, -5.0, 1.0],
          "shapes": ["box", "sphere", "capsule", "hull"], "weights": [1.0, 1.0, 1.0, 1.0],
          "half_extent_range": [0.2, 0.4], "orientation": "random", "seed": 9, "mass": 2.0},
+        {"kind": "wall", "rows": 2, "columns": 3, "half_extents": [0.3, 0.1, 0.1], "position": [0.0, -8.0, 0.1],
+         "direction": "y", "bond": "running", "gap": 0.01, "name": "w"},
+        {"kind": "rain", "count": 3, "region": [[10.0, 10.0, 1.0], [13.0, 13.0, 4.0]], "shapes": ["box", "sphere"],
+         "half_extent_range": [0.1, 0.3], "seed": 2, "linear_velocity": [0.0, 0.0, -1.0]},
+    ],
+    "event": [
+        {"time": 0.5, "kind": "drop", "name": "d", "count": 2, "region": [[-2.0, -2.0, 8.0], [2.0, 2.0, 10.0]],
+         "shapes": ["capsule", "hull"], "half_extent_range": [0.1, 0.2], "seed": 3, "density": 500.0},
+        {"time": 1.0, "kind": "set_velocity", "bodies": ["b0", 1], "linear_velocity": [1.0, 0.0, 0.0]},
+        {"time": 1.0, "kind": "impulse", "bodies": ["d_1"], "impulse": [0.0, 0.0, 2.0], "point": [0.0, 0.0, 9.0]},
+        {"time": 2.0, "kind": "remove", "bodies": ["st_0", 3]},
+        {"time": 3.0, "kind": "solver", "name": "jacobi", "iterations": 8, "relaxation": 0.5},
+        {"time": 4.0, "kind": "iterations", "iterations": 12},
     ],
 }
 
@@ -380,7 +394,8 @@ def _assert_clean(data):
 
 def test_fuzz_base_scene_is_valid():
     scene = _assert_clean(copy.deepcopy(BASE))
-    assert scene is not None and len(scene.bodies) == 5 + 3 + 14 + 8 + 1
+    assert scene is not None and len(scene.bodies) == 5 + 3 + 14 + 8 + 6 + 3 + 1
+    assert [e.kind for e in scene.events] == ["drop", "set_velocity", "impulse", "remove", "solver", "iterations"]
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -401,8 +416,9 @@ def test_fuzz_mutated_scene_raises_only_scene_error(data):
         st.one_of(st.none(), st.booleans(), st.floats(), st.integers(-3, 3), st.text(max_size=4)),
         lambda children: st.one_of(
             st.lists(children, max_size=4),
-            st.dictionaries(st.sampled_from(["body", "static", "generate", "world", "solver", "shape", "kind",
-                                             "position", "radius", "half_extents", "parts", "count", "x"]),
+            st.dictionaries(st.sampled_from(["body", "static", "generate", "world", "solver", "event", "effects",
+                                             "time", "bodies", "shape", "kind", "position", "radius",
+                                             "half_extents", "parts", "count", "x"]),
                             children, max_size=4),
         ),
         max_leaves=12,

@@ -1,4 +1,4 @@
-"""Scene generators: stacks, pyramids and grids of bodies, expanded into BodySpecs.
+"""Scene generators: stacks, pyramids, grids, brick walls and rain, expanded into BodySpecs.
 
 Each generator is deterministic: random draws come from one
 ``numpy.random.default_rng(seed)`` per ``[[generate]]`` entry, in a fixed order
@@ -7,8 +7,10 @@ the same numpy. Positions and mass properties are computed for all bodies at
 once (boxes analytically in one batch), so a 1000-body pile expands in a few
 milliseconds; only then is one ``BodySpec`` made per body.
 
-Generated bodies start at rest. Names, when a ``name`` prefix is given, are
-``<prefix>_<i>`` with i counting from 0 in generation order.
+Generated bodies start at rest (``rain`` alone takes an optional common initial
+velocity, which timeline ``drop`` events use to fire projectiles). Names, when a
+``name`` prefix is given, are ``<prefix>_<i>`` with i counting from 0 in
+generation order.
 """
 
 from __future__ import annotations
@@ -28,12 +30,21 @@ from .rotations import IDENTITY, quat_to_matrix, random_quaternions
 from .spec import BodySpec, ShapeSpec
 
 GRID_SHAPES = ("box", "sphere", "capsule", "hull")
+WALL_DIRECTIONS = ("x", "y")
+WALL_BONDS = ("stack", "running")
+RAIN_MAX_CELLS_PER_AXIS = 1 << 20
+"""A rain region is cut into at most this many cells per axis (so the cell count fits an int64)."""
 HULL_POINTS = 16
 """Random points drawn per generated hull (its hull keeps most of them, always <= 64)."""
 
 
 class GeneratorError(ValueError):
-    """Parameters that pass type checks but cannot make a valid scene; the loader adds the entry."""
+    """Parameters that pass type checks but cannot make a valid scene; the loader adds the entry
+    (and ``key``, the offending key, when there is one)."""
+
+    def __init__(self, problem: str, key: str | None = None):
+        super().__init__(problem)
+        self.key = key
 
 
 @dataclass
@@ -49,15 +60,18 @@ def names(prefix: str | None, count: int) -> list:
     return [f"{prefix}_{i}" for i in range(count)] if prefix else [None] * count
 
 
-def _make_bodies(shapes, positions, orientations, masses, inertias, material: Material) -> list[BodySpec]:
+def _make_bodies(shapes, positions, orientations, masses, inertias, material: Material, *,
+                 linear_velocity=None, angular_velocity=None) -> list[BodySpec]:
     labels = names(material.name, len(shapes))
+    v = np.zeros(3) if linear_velocity is None else np.asarray(linear_velocity, dtype=np.float64)
+    w = np.zeros(3) if angular_velocity is None else np.asarray(angular_velocity, dtype=np.float64)
     return [
         BodySpec(
             shapes=[shapes[i]],
             position=positions[i].copy(),
             orientation=orientations[i].copy(),
-            linear_velocity=np.zeros(3),
-            angular_velocity=np.zeros(3),
+            linear_velocity=v.copy(),
+            angular_velocity=w.copy(),
             mass=float(masses[i]),
             inertia=inertias[i].copy(),
             static=False,
@@ -131,6 +145,69 @@ def pyramid(base: int, half_extents, position, *, gap: float = 0.0, layout: str 
     return box_bodies(pos, np.tile(h, (len(pos), 1)), np.tile(IDENTITY, (len(pos), 1)), material)
 
 
+def _draw_kinds_sizes_orientations(rng, n: int, shapes, weights, half_extents, half_extent_range, orientation):
+    """Shape kinds (only with several shapes), half-size vectors (only with a range) and
+    orientations (only when random) of ``n`` bodies, drawn from ``rng`` in that order."""
+    shapes = list(shapes)
+    if len(shapes) > 1:
+        p = None if weights is None else np.asarray(weights, dtype=np.float64) / float(np.sum(weights))
+        kinds = np.asarray(shapes, dtype=object)[rng.choice(len(shapes), size=n, p=p)]
+    else:
+        kinds = np.full(n, shapes[0], dtype=object)
+    if half_extent_range is not None:
+        lo, hi = float(half_extent_range[0]), float(half_extent_range[1])
+        halves = rng.uniform(lo, hi, size=(n, 3))
+    else:
+        halves = np.tile(np.asarray(half_extents, dtype=np.float64), (n, 1))
+    if isinstance(orientation, str) and orientation == "random":
+        quats = random_quaternions(rng, n)
+    elif isinstance(orientation, str):
+        quats = np.tile(IDENTITY, (n, 1))
+    else:
+        quats = np.tile(np.asarray(orientation, dtype=np.float64), (n, 1))
+    return kinds, halves, quats
+
+
+def _shape_batch(kinds, halves, rots, rng, density: float):
+    """Shapes, masses (N,), inertias (N, 3, 3) and world-axis half extents (N, 3) of the bodies.
+
+    Half-size vector h per shape: box half_extents = h; sphere radius = h_x; capsule
+    radius = h_x / 2, half_height = h_z / 2; hull = hull of HULL_POINTS points uniform
+    in [-h, h] (one draw from ``rng`` per hull, in body order), recentred on its centre
+    of mass. Boxes are done in one batch; the other kinds one by one.
+    """
+    n = len(kinds)
+    masses = np.empty(n)
+    inertias = np.empty((n, 3, 3))
+    shape_specs: list[ShapeSpec | None] = [None] * n
+    extent = np.empty((n, 3))  # world-axis half extent of each body about its centre of mass
+    is_box = kinds == "box"
+    if is_box.any():
+        masses[is_box], inertias[is_box] = box_mass_properties_batch(halves[is_box], density)
+        extent[is_box] = np.einsum("nij,nj->ni", np.abs(rots[is_box]), halves[is_box])
+        for i in np.flatnonzero(is_box):
+            shape_specs[i] = ShapeSpec("box", half_extents=halves[i].copy())
+    for i in np.flatnonzero(~is_box):
+        h = halves[i]
+        if kinds[i] == "sphere":
+            shape = ShapeSpec("sphere", radius=float(h[0]))
+            mp = sphere_mass_properties(shape.radius, density)
+            extent[i] = shape.radius
+        elif kinds[i] == "capsule":
+            shape = ShapeSpec("capsule", radius=float(h[0] / 2.0), half_height=float(h[2] / 2.0))
+            mp = capsule_mass_properties(shape.radius, shape.half_height, density)
+            extent[i] = shape.radius + np.abs(rots[i][:, 2]) * shape.half_height
+        else:
+            verts = hull_vertices(rng.uniform(-1.0, 1.0, size=(HULL_POINTS, 3)) * h)
+            mp = hull_mass_properties(verts, density)
+            verts = verts - mp.com
+            shape = ShapeSpec("hull", vertices=verts)
+            extent[i] = np.abs(verts @ rots[i].T).max(axis=0)
+        shape_specs[i] = shape
+        masses[i], inertias[i] = mp.mass, mp.inertia
+    return shape_specs, masses, inertias, extent
+
+
 def _grid_positions(counts, spacing, origin) -> np.ndarray:
     nx, ny, nz = (int(c) for c in counts)
     iz, iy, ix = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
@@ -159,54 +236,11 @@ def grid(counts, spacing, origin, *, shapes=("box",), weights=None, half_extents
     rng = np.random.default_rng(seed)
     pos = _grid_positions(counts, spacing, origin)
     n = len(pos)
-    shapes = list(shapes)
-    if len(shapes) > 1:
-        p = None if weights is None else np.asarray(weights, dtype=np.float64) / float(np.sum(weights))
-        kinds = np.asarray(shapes, dtype=object)[rng.choice(len(shapes), size=n, p=p)]
-    else:
-        kinds = np.full(n, shapes[0], dtype=object)
-    if half_extent_range is not None:
-        lo, hi = float(half_extent_range[0]), float(half_extent_range[1])
-        halves = rng.uniform(lo, hi, size=(n, 3))
-    else:
-        halves = np.tile(np.asarray(half_extents, dtype=np.float64), (n, 1))
-    if isinstance(orientation, str) and orientation == "random":
-        quats = random_quaternions(rng, n)
-    elif isinstance(orientation, str):
-        quats = np.tile(IDENTITY, (n, 1))
-    else:
-        quats = np.tile(np.asarray(orientation, dtype=np.float64), (n, 1))
+    kinds, halves, quats = _draw_kinds_sizes_orientations(rng, n, shapes, weights, half_extents, half_extent_range,
+                                                          orientation)
     rots = quat_to_matrix(quats)
-
     density = material.density if material.density is not None else 1.0
-    masses = np.empty(n)
-    inertias = np.empty((n, 3, 3))
-    shape_specs: list[ShapeSpec | None] = [None] * n
-    extent = np.empty((n, 3))  # world-axis half extent of each body, for the overlap check
-    is_box = kinds == "box"
-    if is_box.any():
-        masses[is_box], inertias[is_box] = box_mass_properties_batch(halves[is_box], density)
-        extent[is_box] = np.einsum("nij,nj->ni", np.abs(rots[is_box]), halves[is_box])
-        for i in np.flatnonzero(is_box):
-            shape_specs[i] = ShapeSpec("box", half_extents=halves[i].copy())
-    for i in np.flatnonzero(~is_box):
-        h = halves[i]
-        if kinds[i] == "sphere":
-            shape = ShapeSpec("sphere", radius=float(h[0]))
-            mp = sphere_mass_properties(shape.radius, density)
-            extent[i] = shape.radius
-        elif kinds[i] == "capsule":
-            shape = ShapeSpec("capsule", radius=float(h[0] / 2.0), half_height=float(h[2] / 2.0))
-            mp = capsule_mass_properties(shape.radius, shape.half_height, density)
-            extent[i] = shape.radius + np.abs(rots[i][:, 2]) * shape.half_height
-        else:
-            verts = hull_vertices(rng.uniform(-1.0, 1.0, size=(HULL_POINTS, 3)) * h)
-            mp = hull_mass_properties(verts, density)
-            verts = verts - mp.com
-            shape = ShapeSpec("hull", vertices=verts)
-            extent[i] = np.abs(verts @ rots[i].T).max(axis=0)
-        shape_specs[i] = shape
-        masses[i], inertias[i] = mp.mass, mp.inertia
+    shape_specs, masses, inertias, extent = _shape_batch(kinds, halves, rots, rng, density)
     spacing = np.asarray(spacing, dtype=np.float64)
     counts = np.asarray(counts)
     for axis, label in enumerate("xyz"):
@@ -214,7 +248,95 @@ def grid(counts, spacing, origin, *, shapes=("box",), weights=None, half_extents
         if counts[axis] > 1 and widest > spacing[axis] + 1e-9:
             raise GeneratorError(
                 f"bodies may overlap at t=0: spacing along {label} is {spacing[axis]:g} m but the widest body "
-                f"spans {widest:.4g} m along {label}; raise spacing or shrink the bodies"
+                f"spans {widest:.4g} m along {label}; raise spacing or shrink the bodies",
+                key="spacing",
             )
     masses, inertias = _apply_mass(masses, inertias, material)
     return _make_bodies(shape_specs, pos, quats, masses, inertias, material)
+
+
+def wall_count(rows: int, columns: int) -> int:
+    return rows * columns
+
+
+def wall(rows: int, columns: int, half_extents, position, *, direction: str = "x", bond: str = "stack",
+         gap: float = 0.0, material: Material = Material()) -> list[BodySpec]:
+    """A brick wall of ``rows`` x ``columns`` equal boxes, identity orientations.
+
+    ``half_extents`` is one brick in the wall's frame: [along the wall, across it
+    (thickness), vertical]; for ``direction`` "y" the box's x and y half extents are
+    swapped so the wall runs along y. Neighbours are 2 h + gap apart along the wall
+    and vertically (gap = 0: touching). ``position`` is the centre of the bottom row
+    (its z is the bottom bricks' centre height). ``bond`` "running" shifts every odd
+    row (1, 3, ...) by half a brick pitch towards +direction (a running bond, each
+    brick resting on two below); "stack" keeps the columns aligned. Order: bottom
+    row first, along the wall fastest. No random draws.
+    """
+    h = np.asarray(half_extents, dtype=np.float64)
+    pitch = 2.0 * h[0] + gap
+    rise = 2.0 * h[2] + gap
+    row, col = np.divmod(np.arange(rows * columns), columns)
+    along = (col - (columns - 1) / 2.0) * pitch
+    if bond == "running":
+        along = along + (row % 2) * (pitch / 2.0)
+    offsets = np.zeros((len(row), 3))
+    axis = 0 if direction == "x" else 1
+    offsets[:, axis] = along
+    offsets[:, 2] = row * rise
+    world_half = h if direction == "x" else h[[1, 0, 2]]
+    pos = np.asarray(position, dtype=np.float64) + offsets
+    n = len(pos)
+    return box_bodies(pos, np.tile(world_half, (n, 1)), np.tile(IDENTITY, (n, 1)), material)
+
+
+def rain(count: int, low, high, *, shapes=("box",), weights=None, half_extents=None, half_extent_range=None,
+         orientation="random", seed: int | None = None, linear_velocity=None, angular_velocity=None,
+         material: Material = Material()) -> list[BodySpec]:
+    """``count`` random bodies inside the axis-aligned box [low, high], not touching each other.
+
+    Shapes, half-size vectors and orientations are drawn exactly as ``grid`` draws
+    them (kinds with several shapes, sizes with a range, orientations when random,
+    one point draw per hull). The region is then cut into a lattice of equal cells,
+    each at least as wide on every axis as the widest body's world-axis extent
+    (as many cells per axis as fit, at most RAIN_MAX_CELLS_PER_AXIS); ``count``
+    distinct cells are chosen uniformly (``rng.choice(cells, count, replace=False)``,
+    sorted, so body order is bottom-up, x fastest), and each body is jittered
+    uniformly inside its own cell by the room its extent leaves (one (count, 3)
+    uniform draw). Every body therefore lies inside the region and inside its own
+    cell: no two overlap at t = 0. All bodies get the same initial velocities.
+
+    Raises GeneratorError when the region holds fewer cells than ``count``.
+    """
+    rng = np.random.default_rng(seed)
+    low = np.asarray(low, dtype=np.float64)
+    high = np.asarray(high, dtype=np.float64)
+    kinds, halves, quats = _draw_kinds_sizes_orientations(rng, count, shapes, weights, half_extents,
+                                                          half_extent_range, orientation)
+    rots = quat_to_matrix(quats)
+    density = material.density if material.density is not None else 1.0
+    shape_specs, masses, inertias, extent = _shape_batch(kinds, halves, rots, rng, density)
+    span = high - low
+    need = 2.0 * extent.max(axis=0)  # [m] the smallest cell that holds the widest body, per axis
+    with np.errstate(all="ignore"):
+        fit = np.minimum(np.floor(span / need), RAIN_MAX_CELLS_PER_AXIS)
+    cells = np.where(np.isfinite(fit), fit, 0).astype(np.int64)
+    capacity = int(np.prod(cells))
+    if capacity < count:
+        widest = ", ".join(f"{x:.4g}" for x in need)
+        room = " x ".join(str(int(c)) for c in cells)
+        raise GeneratorError(
+            f"region too small: {count} bodies need {count} separate cells, but a region of "
+            f"{' x '.join(f'{x:.4g}' for x in span)} m holds only {room} = {capacity} cells of the widest "
+            f"body's extent ({widest} m); enlarge the region, shrink the bodies or lower count",
+            key="region",
+        )
+    chosen = np.sort(rng.choice(capacity, size=count, replace=False))
+    iz, rest = np.divmod(chosen, cells[0] * cells[1])
+    iy, ix = np.divmod(rest, cells[0])
+    size = span / cells
+    centre = low + (np.stack([ix, iy, iz], axis=1) + 0.5) * size
+    slack = np.maximum(size / 2.0 - extent, 0.0)
+    pos = centre + rng.uniform(-1.0, 1.0, size=(count, 3)) * slack
+    masses, inertias = _apply_mass(masses, inertias, material)
+    return _make_bodies(shape_specs, pos, quats, masses, inertias, material,
+                        linear_velocity=linear_velocity, angular_velocity=angular_velocity)

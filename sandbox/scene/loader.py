@@ -4,7 +4,8 @@ The schema (every key, its type, unit, default and range) is documented for
 users in ``scenes/README.md``; this module is its executable form. Validation is
 strict: an unknown key, a wrong type, a missing required key, a non-positive
 size, mass, density or dt, NaN or inf, an unreadable mesh file, a degenerate
-hull, an unknown shape / solver / generator kind or a duplicate name raises one
+hull, an unknown shape / solver / generator / event kind / effect, a duplicate name
+or a timeline event that refers to a body that does not exist at its time raises one
 ``SceneError`` naming the source, the entry (``body[3].half_extents``) and the
 problem. Nothing is silently defaulted or clamped; defaults exist only for keys
 that are documented as optional.
@@ -12,7 +13,8 @@ that are documented as optional.
 Order of ``Scene.bodies``: the ``[[body]]`` entries in file order, then the
 expansion of each ``[[generate]]`` entry in order, then the convex bodies of
 ``[[static]]`` entries in order (so body indices of a scene without static
-convex bodies match the anchors' ``scenes.json`` listing).
+convex bodies match the anchors' ``scenes.json`` listing). Timeline ``drop``
+events append their bodies after these when they apply (``timeline.py``).
 
 Centre of mass: a body's ``position`` in the file is the origin of its shape
 frame (the frame its hull vertices or compound parts are written in). The
@@ -31,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from . import generators, terrain
+from . import generators, terrain, timeline
 from ..solvers import SOLVERS  # the registry itself (Taichi-free), so names and options cannot drift
 from .hull import HullError, hull_vertices, reduce_to_hull
 from .massprops import body_mass_properties
@@ -43,7 +45,10 @@ SOLVER_NAMES = tuple(SOLVERS)
 SOLVER_OPTIONS = {name: tuple(info.defaults) for name, info in SOLVERS.items()}
 """Options each solver takes, from the solver registry, so a misplaced option fails at load time
 with its entry, not later in ``World``."""
-GENERATOR_KINDS = ("stack", "pyramid", "grid")
+GENERATOR_KINDS = ("stack", "pyramid", "grid", "wall", "rain")
+EVENT_KINDS = timeline.EVENT_KINDS
+EFFECTS = ("friction", "restitution")
+"""Optional contact effects a scene may call for (``effects = [...]``); the engine compiles the others away."""
 PART_SHAPES = ("box", "sphere", "capsule", "hull")
 SOLID_SHAPES = PART_SHAPES + ("compound",)
 STATIC_SHAPES = ("plane", "mesh") + SOLID_SHAPES
@@ -54,11 +59,13 @@ DEFAULT_RESTITUTION = 0.0
 MAX_BODIES = 1_000_000
 """Sanity limit on the bodies of one scene (catches a typo such as count = 1e9 before memory runs out)."""
 MAX_HEIGHTFIELD_CELLS = 2048
+MAX_ITERATIONS = timeline.MAX_ITERATIONS
 """Per axis; 2048 x 2048 cells is 8.4 million triangles."""
 
-TOP_KEYS = ("description", "world", "solver", "static", "body", "generate")
-WORLD_KEYS = ("gravity", "dt", "substeps", "contact_hertz")
-SOLVER_KEYS = ("name", "iterations", "shuffle", "relaxation", "seed")
+TOP_KEYS = ("description", "world", "solver", "static", "body", "generate", "event", "effects")
+WORLD_KEYS = ("gravity", "dt", "substeps", "contact_hertz", "duration")
+SOLVER_OPTION_KEYS = ("shuffle", "relaxation", "seed")
+SOLVER_KEYS = ("name", "iterations") + SOLVER_OPTION_KEYS
 SHAPE_KEYS = {
     "box": ("half_extents",),
     "sphere": ("radius",),
@@ -80,14 +87,28 @@ HEIGHTFIELD_KEYS = {
 }
 HEIGHTFIELD_REQUIRED = {"sines": ("amplitude", "size", "cells"), "noise": ("amplitude", "size", "cells", "seed")}
 MATERIAL_KEYS = ("density", "mass", "friction", "restitution", "name")
+RAIN_KEYS = ("count", "region", "shapes", "weights", "half_extents", "half_extent_range", "orientation", "seed",
+             "linear_velocity", "angular_velocity") + MATERIAL_KEYS
 GENERATOR_KEYS = {
     "stack": ("kind", "count", "half_extents", "size", "position", "gap", "jitter", "seed") + MATERIAL_KEYS,
     "pyramid": ("kind", "base", "half_extents", "size", "position", "gap", "layout") + MATERIAL_KEYS,
     "grid": ("kind", "counts", "spacing", "origin", "shapes", "weights", "half_extents", "half_extent_range",
              "orientation", "seed") + MATERIAL_KEYS,
+    "wall": ("kind", "rows", "columns", "half_extents", "size", "position", "direction", "bond", "gap")
+    + MATERIAL_KEYS,
+    "rain": ("kind",) + RAIN_KEYS,
 }
 GENERATOR_REQUIRED = {"stack": ("count", "position"), "pyramid": ("base", "position"),
-                      "grid": ("counts", "spacing", "origin")}
+                      "grid": ("counts", "spacing", "origin"), "wall": ("rows", "columns", "position"),
+                      "rain": ("count", "region", "seed")}
+EVENT_KEYS = {  # kind -> (allowed keys, required keys)
+    "drop": (("time", "kind") + RAIN_KEYS, ("time", "kind", "count", "region", "seed")),
+    "set_velocity": (("time", "kind", "bodies", "linear_velocity", "angular_velocity"), ("time", "kind", "bodies")),
+    "impulse": (("time", "kind", "bodies", "impulse", "point"), ("time", "kind", "bodies", "impulse")),
+    "remove": (("time", "kind", "bodies"), ("time", "kind", "bodies")),
+    "solver": (("time", "kind", "name", "iterations") + SOLVER_OPTION_KEYS, ("time", "kind", "name")),
+    "iterations": (("time", "kind", "iterations"), ("time", "kind", "iterations")),
+}
 
 
 # ---------------------------------------------------------------------------- entry points
@@ -167,6 +188,18 @@ def _build(data, ctx: Context) -> Scene:
             scene.bodies.append(body)
     if len(scene.bodies) > MAX_BODIES:
         raise SceneError(f"scene has {len(scene.bodies)} bodies; at most {MAX_BODIES} are supported", source=ctx.source)
+    scene.effects = top.string_set("effects", EFFECTS, what="effect") if top.has("effects") else EFFECTS
+    scene.events = timeline.read_events(
+        top.tables("event"),
+        duration=scene.world.duration,
+        bodies=scene.bodies,
+        mesh_names={m.name for m in scene.meshes if m.name is not None},
+        event_keys=EVENT_KEYS,
+        read_drop=lambda r, budget: _expanded(r, "rain", budget),
+        read_solver=_read_solver_change,
+        claim_name=lambda name, r, key: _claim_name(names, name, r, key),
+        budget=MAX_BODIES - len(scene.bodies),
+    )
     return scene
 
 
@@ -188,6 +221,7 @@ def _read_world(r: Reader | None) -> WorldSpec:
         dt=r.real("dt", 1.0 / 60.0, positive=True),
         substeps=r.integer("substeps", 1, minimum=1, maximum=10_000),
         contact_hertz=r.real("contact_hertz", None, positive=True) if "contact_hertz" in r.data else None,
+        duration=r.real("duration", None, positive=True),
     )
 
 
@@ -196,7 +230,16 @@ def _read_solver(r: Reader | None) -> SolverSpec:
         return SolverSpec()
     r.check_keys(SOLVER_KEYS, what="[solver]")
     name = r.string("name", "pgs", choices=SOLVER_NAMES, what="solver")
-    for key in ("shuffle", "relaxation", "seed"):
+    return SolverSpec(
+        name=name,
+        iterations=r.integer("iterations", 10, minimum=1, maximum=MAX_ITERATIONS),
+        options=_read_solver_options(r, name),
+    )
+
+
+def _read_solver_options(r: Reader, name: str) -> dict:
+    """The options given for solver ``name`` (only those present: the solver fills in its defaults)."""
+    for key in SOLVER_OPTION_KEYS:
         if r.has(key) and key not in SOLVER_OPTIONS[name]:
             takes = ", ".join(SOLVER_OPTIONS[name]) or "no options"
             raise r.error(f"option '{key}' does not apply to solver '{name}' (it takes: {takes})", key)
@@ -207,11 +250,13 @@ def _read_solver(r: Reader | None) -> SolverSpec:
         options["relaxation"] = r.real("relaxation", low=0.0, high=2.0, open_low=True, open_high=True)
     if r.has("seed"):
         options["seed"] = r.integer("seed", minimum=0)
-    return SolverSpec(
-        name=name,
-        iterations=r.integer("iterations", 10, minimum=1, maximum=1_000_000),
-        options=options,
-    )
+    return options
+
+
+def _read_solver_change(r: Reader) -> tuple[str, int | None, dict]:
+    """A ``solver`` event: the new solver's name, iteration count (None keeps it) and options."""
+    name = r.string("name", choices=SOLVER_NAMES, what="solver")
+    return name, r.integer("iterations", None, minimum=1, maximum=MAX_ITERATIONS), _read_solver_options(r, name)
 
 
 # ---------------------------------------------------------------------------- shapes and bodies
@@ -419,12 +464,17 @@ def _check_budget(r: Reader, key: str, count: int, budget: int) -> None:
 def _read_generator(r: Reader, *, budget: int) -> list[BodySpec]:
     kind = r.string("kind", choices=GENERATOR_KINDS, what="generator kind")
     r.check_keys(GENERATOR_KEYS[kind], required=("kind",) + GENERATOR_REQUIRED[kind], what=f"a '{kind}' generator")
+    return _expanded(r, kind, budget)
+
+
+def _expanded(r: Reader, kind: str, budget: int) -> list[BodySpec]:
+    """The bodies of a generator entry (or of a drop event, kind 'rain') whose keys are checked."""
     material = _read_material(r)
     try:
         with np.errstate(all="ignore"):
             bodies = _expand(r, kind, material, budget)
     except generators.GeneratorError as exc:
-        raise r.error(str(exc)) from None
+        raise r.error(str(exc), exc.key) from None
     except HullError as exc:
         raise r.error(f"a generated hull is invalid: {exc}") from None
     for body in bodies:
@@ -444,6 +494,17 @@ def _expand(r: Reader, kind: str, material: generators.Material, budget: int) ->
         seed = _need_seed(r, "jitter > 0") if jitter > 0 else r.integer("seed", None, minimum=0)
         return generators.stack(count, half, r.vector("position", 3), gap=r.real("gap", 0.0, nonnegative=True),
                                 jitter=jitter, seed=seed, material=material)
+    if kind == "wall":
+        rows = r.integer("rows", minimum=1)
+        columns = r.integer("columns", minimum=1)
+        _check_budget(r, "rows", min(rows, 10**7) * min(columns, 10**7), budget)
+        return generators.wall(rows, columns, _read_box_size(r), r.vector("position", 3),
+                               direction=r.string("direction", "x", choices=generators.WALL_DIRECTIONS,
+                                                  what="wall direction"),
+                               bond=r.string("bond", "stack", choices=generators.WALL_BONDS, what="wall bond"),
+                               gap=r.real("gap", 0.0, nonnegative=True), material=material)
+    if kind == "rain":
+        return _read_rain(r, material, budget)
     if kind == "pyramid":
         base = r.integer("base", minimum=1)
         layout = r.string("layout", "2d", choices=("2d", "3d"), what="pyramid layout")
@@ -455,7 +516,38 @@ def _expand(r: Reader, kind: str, material: generators.Material, budget: int) ->
     _check_budget(r, "counts", int(np.prod([min(int(c), 10**7) for c in counts])), budget)
     spacing = r.scalar_or_vector("spacing", 3, positive=True)
     origin = r.vector("origin", 3)
-    shapes = r.choice_list("shapes", generators.GRID_SHAPES, what="grid shape") if r.has("shapes") else ["box"]
+    shapes, weights, half_extents, half_range, orientation = _read_shape_mix(r, "identity", "grid")
+    random_reasons = [why for why, used in (("more than one shape", len(shapes) > 1),
+                                            ("half_extent_range", half_range is not None),
+                                            ("orientation = 'random'", isinstance(orientation, str) and orientation == "random"),
+                                            ("a hull shape", "hull" in shapes)) if used]
+    seed = _need_seed(r, random_reasons[0]) if random_reasons else r.integer("seed", None, minimum=0)
+    return generators.grid(counts, spacing, origin, shapes=shapes, weights=weights, half_extents=half_extents,
+                           half_extent_range=half_range, orientation=orientation, seed=seed, material=material)
+
+
+def _read_rain(r: Reader, material: generators.Material, budget: int) -> list[BodySpec]:
+    count = r.integer("count", minimum=1)
+    _check_budget(r, "count", count, budget)
+    region = r.points("region")
+    if len(region) != 2:
+        raise r.error(f"expected [[x0, y0, z0], [x1, y1, z1]] (two corners), got {len(region)} points", "region")
+    low, high = region
+    if not np.all(low < high):
+        raise r.error(f"region corners must satisfy low < high on every axis, got low {low.tolist()} and high "
+                      f"{high.tolist()}", "region")
+    shapes, weights, half_extents, half_range, orientation = _read_shape_mix(r, "random", "rain")
+    linear_velocity = r.vector("linear_velocity", 3, (0.0, 0.0, 0.0))
+    angular_velocity = r.vector("angular_velocity", 3, (0.0, 0.0, 0.0))
+    return generators.rain(count, low, high, shapes=shapes, weights=weights, half_extents=half_extents,
+                           half_extent_range=half_range, orientation=orientation,
+                           seed=r.integer("seed", minimum=0), linear_velocity=linear_velocity,
+                           angular_velocity=angular_velocity, material=material)
+
+
+def _read_shape_mix(r: Reader, default_orientation: str, label: str):
+    """shapes, weights, half_extents or half_extent_range, orientation: the keys grid and rain share."""
+    shapes = r.choice_list("shapes", generators.GRID_SHAPES, what=f"{label} shape") if r.has("shapes") else ["box"]
     weights = None
     if r.has("weights"):
         if len(shapes) < 2:
@@ -471,19 +563,14 @@ def _expand(r: Reader, kind: str, material: generators.Material, budget: int) ->
         half_range = r.vector("half_extent_range", 2, positive=True)
         if half_range[0] > half_range[1]:
             raise r.error(f"expected [low, high] with low <= high, got {half_range.tolist()}", "half_extent_range")
-    orientation = "identity"
+    orientation = default_orientation
     if r.has("orientation"):
         if isinstance(r.data["orientation"], str):
-            orientation = r.string("orientation", choices=("identity", "random"), what="grid orientation")
+            orientation = r.string("orientation", choices=("identity", "random"), what=f"{label} orientation")
         else:
             orientation = r.quaternion("orientation")
-    random_reasons = [why for why, used in (("more than one shape", len(shapes) > 1),
-                                            ("half_extent_range", half_range is not None),
-                                            ("orientation = 'random'", isinstance(orientation, str) and orientation == "random"),
-                                            ("a hull shape", "hull" in shapes)) if used]
-    seed = _need_seed(r, random_reasons[0]) if random_reasons else r.integer("seed", None, minimum=0)
-    return generators.grid(counts, spacing, origin, shapes=shapes, weights=weights, half_extents=half_extents,
-                           half_extent_range=half_range, orientation=orientation, seed=seed, material=material)
+    return shapes, weights, half_extents, half_range, orientation
 
 
-__all__ = ["load_scene", "scene_from_dict", "SOLVER_NAMES", "SOLVER_OPTIONS", "GENERATOR_KINDS", "MAX_BODIES"]
+__all__ = ["load_scene", "scene_from_dict", "SOLVER_NAMES", "SOLVER_OPTIONS", "GENERATOR_KINDS", "EVENT_KINDS",
+           "EFFECTS", "MAX_BODIES"]

@@ -197,6 +197,25 @@ class Reader:
             raise self.error(f"vector is too long, got {v.tolist()}", key)
         return v
 
+    def items(self, key) -> list:
+        """A required list, as a Python list (its items unchecked)."""
+        value, _ = self._get(key, MISSING)
+        return self._list(value, key)
+
+    def string_set(self, key, choices, *, what="value") -> tuple[str, ...]:
+        """A list of distinct strings, each one of ``choices`` (may be empty); returned sorted."""
+        items = self.items(key)
+        out = []
+        for i, item in enumerate(items):
+            if not isinstance(item, str):
+                raise self.error(f"expected a string, got {_kind_of(item)} {_show(item)}", f"{key}[{i}]")
+            if item not in choices:
+                raise self.error(f"unknown {what} {item!r}; expected one of: {', '.join(choices)}", f"{key}[{i}]")
+            if item in out:
+                raise self.error(f"{what} {item!r} is listed twice", f"{key}[{i}]")
+            out.append(item)
+        return tuple(sorted(out))
+
     def scalar_or_vector(self, key, n: int, default=MISSING, *, positive=False) -> np.ndarray:
         """A number (used for every component) or a list of ``n`` numbers."""
         value, given = self._get(key, default)
