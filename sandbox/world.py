@@ -403,9 +403,13 @@ class World:
 
 def _finite_vector(value, what: str) -> np.ndarray:
     try:
-        v = np.asarray(value, dtype=np.float64).reshape(3)
+        raw = np.asarray(value)
     except (TypeError, ValueError):
-        raise SandboxError(f"{what} must be three numbers, got {value!r}") from None
+        raw = np.asarray(None)
+    has_bool = isinstance(value, (list, tuple)) and any(isinstance(x, (bool, np.bool_)) for x in value)
+    if raw.shape != (3,) or raw.dtype.kind not in "iuf" or has_bool:
+        raise SandboxError(f"{what} must be three numbers, got {value!r}")
+    v = raw.astype(np.float64)
     if not np.all(np.isfinite(v)):
         raise SandboxError(f"{what} must be finite, got {value!r}")
     return v

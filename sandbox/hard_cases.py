@@ -1,0 +1,164 @@
+"""The hard cases of method.md section 2 as scene builders with pass criteria.
+
+Shared by the test suite (``tests/test_hard_cases.py``) and the stability matrix
+(``benchmarks/stability_matrix.py`` -> ``docs/stability.md``), the way Box2D's
+``shared/benchmarks.c`` feeds both its tests and its benchmark app. Each case
+returns a scene dict, a step count and a judge: ``judge(run) -> (passed, figures)``
+where ``run`` holds the per-step series the runner recorded. Every case also fails
+on any non-finite number (the world raises SimulationError).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+G = 9.81
+
+
+def _plane(friction=0.5):
+    return {"shape": "plane", "normal": [0.0, 0.0, 1.0], "offset": 0.0, "friction": friction}
+
+
+def _box(pos, half, mass=None, density=1000.0, **extra):
+    b = {"shape": "box", "half_extents": list(half), "position": list(pos), **extra}
+    if mass is None:
+        b["density"] = density
+    else:
+        b["mass"] = mass
+    return b
+
+
+@dataclass
+class Run:
+    """What the runner measured: per-step series and the final state."""
+
+    ke: list = field(default_factory=list)  # [J]
+    max_penetration: list = field(default_factory=list)  # [m]
+    max_speed: list = field(default_factory=list)  # [m/s]
+    start: dict = field(default_factory=dict)  # state() before the first step
+    final: dict = field(default_factory=dict)  # state() after the last step
+
+
+@dataclass
+class Case:
+    name: str
+    scene: dict
+    steps: int
+    judge: Callable[[Run], tuple[bool, str]]
+    what: str
+
+
+def _stack_drift(run: Run, top: int, tol: float, pen_tol: float):
+    drift = float(np.linalg.norm(run.final["position"][top, :2] - run.start["position"][top, :2]))
+    pen = max(run.max_penetration[len(run.max_penetration) // 2:])
+    ok = drift < tol and pen < pen_tol
+    return ok, f"top drift {1e3 * drift:.1f} mm, late max pen {1e3 * pen:.1f} mm"
+
+
+def tall_stack(n=20) -> Case:
+    bodies = [_box([0, 0, 0.5 + i], [0.5, 0.5, 0.5]) for i in range(n)]
+    scene = {"world": {"contact_hertz": 60.0}, "static": [_plane()], "body": bodies}
+    return Case(f"stack_{n}", scene, 600, lambda r: _stack_drift(r, n - 1, 0.01, 0.01),
+                f"{n} unit boxes, 60 Hz contacts, 10 s: top drift < 1 cm, penetration < 1 cm")
+
+
+def heavy_on_light(ratio: int) -> Case:
+    masses = [1.0, 10.0, 100.0, 1000.0][: 1 + int(round(np.log10(ratio)))]
+    bodies = [_box([0, 0, 0.5 + i], [0.5, 0.5, 0.5], mass=m) for i, m in enumerate(masses)]
+    top = len(masses) - 1
+    scene = {"static": [_plane()], "body": bodies}
+    return Case(f"heavy_on_light_1to{ratio}", scene, 600, lambda r: _stack_drift(r, top, 0.02, 0.02),
+                f"masses {', '.join(f'{m:g}' for m in masses)} kg bottom to top, 10 s: drift < 2 cm, pen < 2 cm")
+
+
+def deep_overlap() -> Case:
+    bodies = []
+    for row in range(4):
+        for k in range(4 - row):
+            bodies.append(_box([(k - (3 - row) / 2) * 0.7, 0.0, 0.5 + row * 0.7], [0.5, 0.5, 0.5]))
+    scene = {"static": [_plane()], "body": bodies}
+
+    def judge(r: Run):
+        peak = max(r.max_speed)
+        pen = r.max_penetration[-1]
+        ok = peak < 5.0 and pen < 0.01
+        return ok, f"peak speed {peak:.2f} m/s, penetration after 3 s {1e3 * pen:.1f} mm"
+
+    return Case("deep_overlap_30pct", scene, 180, judge,
+                "10 boxes placed 30 % interpenetrating: separate without explosion (speed < 5 m/s), pen < 1 cm at 3 s")
+
+
+def projectile(speed=200.0) -> Case:
+    scene = {"world": {"gravity": [0.0, 0.0, 0.0]},
+             "body": [_box([5.0, 0.0, 0.0], [0.05, 2.0, 2.0], static=True),
+                      {"shape": "sphere", "radius": 0.25, "position": [0.0, 0.0, 0.0],
+                       "linear_velocity": [speed, 0.0, 0.0], "density": 1000.0}]}
+
+    def judge(r: Run):
+        x = float(r.final["position"][1, 0])
+        return x < 4.95, f"sphere centre at x = {x:.3f} m (wall face at 4.95)"
+
+    return Case(f"projectile_{int(speed)}ms_thin_wall", scene, 60, judge,
+                f"0.25 m sphere at {speed:g} m/s into a 0.1 m wall: no tunnelling")
+
+
+def spinning_rod() -> Case:
+    scene = {"world": {"gravity": [0.0, 0.0, 0.0]},
+             "body": [_box([0, 0, 0], [0.025, 1.0, 0.025], angular_velocity=[0.2, 0.1, 30.0])]}
+
+    def judge(r: Run):
+        growth = max(r.ke) / r.ke[0] - 1.0
+        return growth < 0.01, f"max energy growth {100 * growth:.3f} %"
+
+    return Case("spinning_thin_rod", scene, 600, judge,
+                "1:40 rod at 30 rad/s near its intermediate axis, zero gravity, 10 s: energy never grows > 1 %")
+
+
+def scaled_stack(size: float) -> Case:
+    h = 0.5 * size
+    bodies = [_box([0, 0, h + 2 * h * i], [h, h, h]) for i in range(3)]
+    scene = {"static": [_plane()], "body": bodies}
+    return Case(f"stack_3_of_{size:g}m", scene, 300, lambda r: _stack_drift(r, 2, 0.02 * size, 0.05 * size),
+                f"3 cubes of {size:g} m: drift < 2 % and penetration < 5 % of the size")
+
+
+def resting_pile() -> Case:
+    scene = {"static": [_plane()],
+             "generate": [{"kind": "grid", "counts": [3, 3, 3], "spacing": 1.2, "origin": [-1.2, -1.2, 0.6],
+                           "shapes": ["box"], "half_extent_range": [0.3, 0.45], "orientation": "random", "seed": 5}]}
+
+    def judge(r: Run):
+        ke = float(np.mean(r.ke[-60:]))
+        return ke < 1.0, f"mean KE of the last second {ke:.2e} J"
+
+    return Case("resting_pile_27", scene, 300, judge, "27 random boxes dropped into a pile, 5 s: at rest (KE < 1 J)")
+
+
+def all_cases() -> list[Case]:
+    return [tall_stack(), heavy_on_light(100), heavy_on_light(1000), deep_overlap(), projectile(),
+            spinning_rod(), scaled_stack(0.001), scaled_stack(100.0), resting_pile()]
+
+
+def run_case(case: Case, solver: str, iterations: int, steps: int | None = None) -> tuple[bool, str]:
+    """Simulate one case; (passed, figures). Non-finite state counts as a failure."""
+    from . import Scene, World
+    from .errors import SimulationError
+
+    world = World(Scene.from_dict(case.scene, source=case.name), solver=solver, iterations=iterations, arch="cpu")
+    run = Run(start=world.state())
+    try:
+        for _ in range(steps or case.steps):
+            world.step(1)
+            m = world.metrics()
+            st = world.state()
+            run.ke.append(m["kinetic_energy"])
+            run.max_penetration.append(m["max_penetration"])
+            run.max_speed.append(float(np.linalg.norm(st["linear_velocity"], axis=1).max()))
+    except SimulationError as exc:
+        return False, f"non-finite: {exc}"
+    run.final = world.state()
+    world.close()
+    return case.judge(run)

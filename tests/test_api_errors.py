@@ -1,0 +1,67 @@
+"""Bad API calls get the library's own error with a clear message and leave the world intact."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from sandbox import SandboxError, Scene, World
+
+from .conftest import box_body, scene_dict
+
+BAD_NUMBERS = st.sampled_from([math.nan, math.inf, -math.inf, "x", None, [1.0, 2.0], [[1, 2, 3]], True])
+
+
+@pytest.fixture(scope="module")
+def world():
+    w = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5]), box_body([0, 0, 3.0], static=True)])), arch="cpu")
+    w.step(2)
+    return w
+
+
+def _unchanged(world, before):
+    after = world.state()
+    for key in before:
+        np.testing.assert_array_equal(before[key], after[key])
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(bad=BAD_NUMBERS, call=st.sampled_from(["velocity", "angular", "impulse", "point"]))
+def test_non_finite_or_malformed_vectors_are_refused(world, bad, call):
+    before = world.state()
+    vec = [bad, 0.0, 0.0] if not isinstance(bad, list) else bad
+    with pytest.raises(SandboxError):
+        if call == "velocity":
+            world.set_velocity([0], linear=vec)
+        elif call == "angular":
+            world.set_velocity([0], angular=vec)
+        elif call == "impulse":
+            world.apply_impulse([0], vec)
+        else:
+            world.apply_impulse([0], [1.0, 0.0, 0.0], point=vec)
+    _unchanged(world, before)
+
+
+@pytest.mark.parametrize("indices, match", [([5], "no body 5"), ([-1], "no body -1"), (["a"], "no body"),
+                                            ([1], "static")])
+def test_bad_body_references_are_refused(world, indices, match):
+    before = world.state()
+    with pytest.raises(SandboxError, match=match):
+        world.apply_impulse(indices, [1.0, 0.0, 0.0])
+    _unchanged(world, before)
+
+
+@pytest.mark.parametrize("call", [lambda w: w.step(-1), lambda w: w.step(1.5), lambda w: w.set_solver("nope"),
+                                  lambda w: w.set_solver("pgs", iterations=0),
+                                  lambda w: w.set_solver("jacobi", relaxation=3.0),
+                                  lambda w: w.set_solver("pgs", shuffle=True)])
+def test_bad_solver_and_step_arguments_are_refused(world, call):
+    with pytest.raises(SandboxError):
+        call(world)
+
+
+def test_world_needs_a_scene():
+    with pytest.raises(SandboxError, match="needs a Scene"):
+        World({"body": []}, arch="cpu")
