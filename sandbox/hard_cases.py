@@ -99,10 +99,12 @@ def projectile(speed=200.0) -> Case:
 
     def judge(r: Run):
         x = float(r.final["position"][1, 0])
-        return x < 4.95, f"sphere centre at x = {x:.3f} m (wall face at 4.95)"
+        v = float(np.linalg.norm(r.final["linear_velocity"][1]))
+        return x < 4.95 and v < 5.0, f"sphere centre at x = {x:.3f} m (wall face at 4.95), final speed {v:.2f} m/s"
 
     return Case(f"projectile_{int(speed)}ms_thin_wall", scene, 60, judge,
-                f"0.25 m sphere at {speed:g} m/s into a 0.1 m wall: no tunnelling")
+                f"0.25 m sphere at {speed:g} m/s into a 0.1 m wall (restitution 0): no tunnelling, no rebound "
+                "(final speed < 5 m/s)")
 
 
 def spinning_rod() -> Case:
@@ -127,7 +129,7 @@ def scaled_stack(size: float) -> Case:
 
 def resting_pile() -> Case:
     scene = {"static": [_plane()],
-             "generate": [{"kind": "grid", "counts": [3, 3, 3], "spacing": 1.2, "origin": [-1.2, -1.2, 0.6],
+             "generate": [{"kind": "grid", "counts": [3, 3, 3], "spacing": 1.6, "origin": [-1.6, -1.6, 0.8],
                            "shapes": ["box"], "half_extent_range": [0.3, 0.45], "orientation": "random", "seed": 5}]}
 
     def judge(r: Run):

@@ -13,9 +13,9 @@ quaternion (1, h w / 2) normalised) and sets L' = Q^T L. Then
 * the Cayley identity L' - L = -(h/2) w x (L + L') is orthogonal to w, so the
   energy 1/2 L.I^-1 L is unchanged too: a spinning thin body cannot gain energy.
 
-w is found by a few fixed-point sweeps (contractive while h |w| < 1; a body
-spinning faster than 1/h rad/s gets an approximate but still norm-preserving
-rotation). Contact and gravity impulses act before, in the solver.
+w is found by Newton's method on the implicit midpoint equation; with an inexact
+w the rotation is still exact (momentum kept), only the energy error grows.
+Contact and gravity impulses act before, in the solver.
 
 The guard: a body whose velocity or pose is not finite sets an error bit and its
 index (atomic min: the lowest such body is reported), so the world can restore
@@ -47,9 +47,10 @@ class ErrorFlags:
         self.body[None] = BIG
 
 
-ROTATION_SWEEPS = 2
-"""Fixed-point sweeps for the midpoint angular velocity. Momentum is exact for any count;
-the energy error shrinks like (h |w|)^sweeps (2 keeps a 6 rad/s spin at 60 Hz within 1e-5)."""
+NEWTON_STEPS = 3
+"""Newton steps for the midpoint angular velocity; quadratic convergence even for thin rods,
+whose tiny axial inertia makes a fixed-point iteration diverge (measured: +15 % energy on a
+1:40 rod at 30 rad/s, 240 Hz substeps, with two fixed-point sweeps)."""
 
 
 @ti.kernel
@@ -60,17 +61,23 @@ def integrate_velocities(bodies: ti.template(), gravity: vec3, h: ti.f32):
 
 
 @ti.func
+def _skew(v: vec3) -> mat3:
+    return mat3(0.0, -v[2], v[1], v[2], 0.0, -v[0], -v[1], v[0], 0.0)
+
+
+@ti.func
 def rotate_free(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia: ti.template(), h: ti.f32):
     """Midpoint/Cayley rotation step (module docstring): returns the new orientation
-    and the new world angular velocity."""
+    and the new world angular velocity. The midpoint w solves
+    G(w) = I w + (h/2) w x (I w) - L = 0 (the implicit midpoint rule for Euler's
+    equations, equivalent to L' = cay(-h w) L with w = I^-1 (L + L') / 2)."""
     l0 = inertia @ quat_rotate_inv(q, omega)
     w = inv_inertia @ l0
-    step = vec4(1.0, 0.0, 0.0, 0.0)
-    l1 = l0
-    for _ in ti.static(range(ROTATION_SWEEPS)):
-        step = quat_normalize(vec4(1.0, 0.5 * h * w[0], 0.5 * h * w[1], 0.5 * h * w[2]))
-        l1 = quat_rotate_inv(step, l0)
-        w = inv_inertia @ (0.5 * (l0 + l1))
+    for _ in ti.static(range(NEWTON_STEPS)):
+        iw = inertia @ w
+        g = iw + 0.5 * h * w.cross(iw) - l0
+        jac = inertia + 0.5 * h * (_skew(w) @ inertia - _skew(iw))
+        w -= jac.inverse() @ g
     step = quat_normalize(vec4(1.0, 0.5 * h * w[0], 0.5 * h * w[1], 0.5 * h * w[2]))
     l1 = quat_rotate_inv(step, l0)
     q1 = quat_normalize(quat_mul(q, step))
