@@ -72,11 +72,14 @@ def rotate_free(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia: ti.te
     G(w) = I w + (h/2) w x (I w) - L = 0 (the implicit midpoint rule for Euler's
     equations, equivalent to L' = cay(-h w) L with w = I^-1 (L + L') / 2)."""
     l0 = inertia @ quat_rotate_inv(q, omega)
-    w = inv_inertia @ l0
+    w0 = inv_inertia @ l0
+    w = w0
     for _ in ti.static(range(NEWTON_STEPS)):
+        # G premultiplied by I^-1 so the system is O(1) whatever the body's size: a 1 mm
+        # cube's inertia (~1e-13 kg m^2) would underflow a float32 determinant
         iw = inertia @ w
-        g = iw + 0.5 * h * w.cross(iw) - l0
-        jac = inertia + 0.5 * h * (_skew(w) @ inertia - _skew(iw))
+        g = w + 0.5 * h * (inv_inertia @ w.cross(iw)) - w0
+        jac = ti.Matrix.identity(ti.f32, 3) + 0.5 * h * (inv_inertia @ (_skew(w) @ inertia - _skew(iw)))
         w -= jac.inverse() @ g
     step = quat_normalize(vec4(1.0, 0.5 * h * w[0], 0.5 * h * w[1], 0.5 * h * w[2]))
     l1 = quat_rotate_inv(step, l0)

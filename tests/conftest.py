@@ -34,3 +34,8 @@ def scene_dict(bodies, statics=(plane(),), gravity=(0.0, 0.0, -9.81), dt=1.0 / 6
         "static": list(statics),
         "body": list(bodies),
     }
+
+
+def pytest_addoption(parser):
+    parser.addoption("--stress", action="store_true", default=False,
+                     help="run the whole stability matrix (every solver, 4 and 15 iterations), not the CI subset")

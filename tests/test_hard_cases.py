@@ -1,0 +1,67 @@
+"""Hard cases stay numerically stable (method.md section 2; cases in sandbox/hard_cases.py).
+
+CI runs serial PGS and mass splitting at 15 iterations; ``pytest --stress`` runs every solver
+at 4 and 15 iterations (the same grid as docs/stability.md). A case a solver is known to fail
+is marked xfail(strict) with the measured figures, so the failure stays visible and a fix
+shows up as an unexpected pass that forces this table to be updated.
+"""
+
+import pytest
+
+from sandbox import SOLVERS
+from sandbox.hard_cases import all_cases, run_case
+
+CASES = {case.name: case for case in all_cases()}
+
+KNOWN_FAILURES = {
+    # soft contacts are springs on the contact's effective mass, which the light box sets:
+    # the heavy top sinks ~34 mm at 30 Hz (criterion 20 mm)
+    ("heavy_on_light_1to100", "*"): "heavy box sinks ~34 mm into the soft contacts of the light ones",
+    # 1:1000: the PGS family tips the column over, the Jacobi family lets the top sink ~0.7 m
+    ("heavy_on_light_1to1000", "*"): "column tips over (PGS) or the top sinks ~0.7 m (Jacobi family)",
+    # the soft contact's static deflection, ~g / omega^2 = 0.3 mm at 30 Hz, does not scale with size
+    ("stack_3_of_0.001m", "*"): "penetration ~0.8 mm on 1 mm cubes: the soft-contact deflection is absolute",
+    ("deep_overlap_30pct", "mass-splitting"): "peak separation speed ~5.2-5.8 m/s (criterion 5 m/s)",
+    ("projectile_200ms_thin_wall", "jacobi"): "no tunnelling, but the under-relaxed sphere rebounds at ~40 m/s",
+    ("stack_20", "pgs@15"): "the soft column sways: top drift ~13 mm (criterion 10 mm; 10 iterations pass)",
+    ("stack_20", "jacobi@4"): "sinks ~4 cm at 4 iterations",
+    ("stack_20", "mass-splitting@4"): "sinks ~7 cm at 4 iterations",
+    ("stack_20", "block-mass-splitting@4"): "falls at 4 iterations",
+    ("stack_20", "pgs-colored@4"): "top drifts ~26 mm at 4 iterations",
+    ("deep_overlap_30pct", "block-mass-splitting@4"): "peak separation speed ~5.3 m/s at 4 iterations",
+    ("resting_pile_27", "pgs@4"): "still moving after 5 s (KE ~5e2 J)",
+    ("resting_pile_27", "pgs-colored@4"): "still moving after 5 s (KE ~7e2 J)",
+    ("resting_pile_27", "pgs-colored@15"): "still moving after 5 s (KE ~3 J)",
+    ("resting_pile_27", "jacobi@4"): "still moving after 5 s (KE ~60 J)",
+    ("resting_pile_27", "mass-splitting@4"): "still moving after 5 s (KE ~17 J)",
+    ("resting_pile_27", "block-mass-splitting@15"): "still moving after 5 s (KE ~170 J)",
+}
+
+
+def _known(case: str, solver: str, iterations: int):
+    for key in ((case, "*"), (case, solver), (case, f"{solver}@{iterations}")):
+        if key in KNOWN_FAILURES:
+            return KNOWN_FAILURES[key]
+    return None
+
+
+def pytest_generate_tests(metafunc):
+    if "combo" not in metafunc.fixturenames:
+        return
+    stress = metafunc.config.getoption("--stress")
+    solvers = list(SOLVERS) if stress else ["pgs", "mass-splitting"]
+    iterations = [4, 15] if stress else [15]
+    params = []
+    for name in CASES:
+        for solver in solvers:
+            for k in iterations:
+                reason = _known(name, solver, k)
+                marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
+                params.append(pytest.param((name, solver, k), marks=marks, id=f"{name}-{solver}-{k}"))
+    metafunc.parametrize("combo", params)
+
+
+def test_hard_case(combo):
+    name, solver, iterations = combo
+    passed, figures = run_case(CASES[name], solver, iterations)
+    assert passed, f"{name} with {solver} at {iterations} iterations: {figures}"
