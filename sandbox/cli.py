@@ -121,6 +121,25 @@ def cmd_scenes(args) -> int:
     return 0
 
 
+def cmd_bench(args) -> int:
+    from .bench import run
+
+    def ints(text, what):
+        try:
+            return [int(x) for x in text.split(",") if x.strip()] if text else None
+        except ValueError:
+            from .errors import SandboxError
+
+            raise SandboxError(f"{what} must be comma-separated integers, got {text!r}") from None
+
+    run(scenes=args.scenes or None, solvers=args.solvers.split(",") if args.solvers else None,
+        iterations=ints(args.iterations, "--iterations"), arch=args.arch, out=args.out, quick=args.quick,
+        settle=args.settle, window=args.window, steps=args.steps,
+        scaling_sizes=ints(args.scaling_sizes, "--scaling-sizes"), scaling_iterations=args.scaling_iterations,
+        shuffle=args.shuffle, peers=not args.no_peers, scaling=not args.no_scaling, quiet=args.quiet)
+    return 0
+
+
 def main(argv=None) -> int:
     from .errors import SandboxError
     from .solvers import SOLVERS
@@ -142,6 +161,29 @@ def main(argv=None) -> int:
     rep.add_argument("file")
     rep.add_argument("--arch", choices=["cpu", "cuda"], default="cpu")
     rep.set_defaults(func=cmd_replay)
+    bench = sub.add_parser("bench", help="error vs cost per scene x solver x iteration count, scaling, pybullet peer",
+                           description="Settle each scene, then measure error (residual, penetration, resting kinetic "
+                           "energy, marker drift) and cost (ms/step by stage, ms/iteration, steps/s); write "
+                           "bench.csv, bench.json, scaling.csv and PNG plots. See docs/bench.md.")
+    bench.add_argument("scenes", nargs="*", help="scene files or shipped scene names (default: stack_20 pyramid_20 "
+                       "pile_1000; --quick: pyramid_20)")
+    bench.add_argument("--solvers", help="comma-separated (default: all; --quick: pgs,mass-splitting)")
+    bench.add_argument("--iterations", help="comma-separated counts (default: 1,2,4,8,15,30,60,120,250,500; "
+                       "--quick: 1,4,16)")
+    bench.add_argument("--arch", choices=["cpu", "cuda", "auto"], default="cpu")
+    bench.add_argument("--out", default="out/bench", help="output directory (default: out/bench)")
+    bench.add_argument("--quick", action="store_true", help="small smoke run of every output (~1 min on 2 cores)")
+    bench.add_argument("--settle", type=int, help="frames before measuring (default 120; --quick 60)")
+    bench.add_argument("--window", type=int, help="frames of the error window (default 60; --quick 30)")
+    bench.add_argument("--steps", type=int, help="timed steps, once per-stage and once whole (default 60; --quick 30)")
+    bench.add_argument("--scaling-sizes", help="grid pile sizes in bodies (default: 100,300,1000,2000,5000; "
+                       "--quick: 32,100)")
+    bench.add_argument("--scaling-iterations", type=int, help="iterations in the scaling runs (default 15; --quick 4)")
+    bench.add_argument("--no-scaling", action="store_true", help="skip the scaling piles")
+    bench.add_argument("--no-peers", action="store_true", help="skip pybullet even when importable")
+    bench.add_argument("--shuffle", action="store_true", help="pgs-colored: permute contacts and colours every step")
+    bench.add_argument("--quiet", action="store_true", help="no progress bar")
+    bench.set_defaults(func=cmd_bench)
     scenes = sub.add_parser("scenes", help="list the shipped scenes")
     scenes.set_defaults(func=cmd_scenes)
     args = parser.parse_args(argv)

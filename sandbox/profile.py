@@ -11,10 +11,10 @@ from contextlib import contextmanager
 
 import taichi as ti
 
-STAGES = ("integrate_velocities", "broadphase", "narrowphase", "prepare", "solve", "integrate_positions", "relax")
+STAGES = ("integrate_velocities", "broadphase", "narrowphase", "prepare", "iterate", "integrate_positions", "relax")
 GROUPS = {
     "collide": ("broadphase", "narrowphase"),
-    "solve": ("prepare", "solve", "relax"),
+    "solve": ("prepare", "iterate", "relax"),
     "integrate": ("integrate_velocities", "integrate_positions"),
 }
 
@@ -43,8 +43,9 @@ class Profiler:
     def mean_ms(self) -> dict[str, float]:
         """Mean ms per step for every stage, the three groups and the total."""
         n = max(1, self.steps)
-        out = {name: 1e3 * self.total_s.get(name, 0.0) / n for name in STAGES}
+        stages = {name: 1e3 * self.total_s.get(name, 0.0) / n for name in STAGES}
+        out = dict(stages)
         for group, members in GROUPS.items():
-            out[group] = sum(out[m] for m in members)
-        out["total"] = sum(out[name] for name in STAGES)
+            out[group] = sum(stages[m] for m in members)
+        out["total"] = sum(stages.values())
         return out

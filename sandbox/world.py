@@ -6,7 +6,7 @@ The step, stage by stage (names = profile keys = report keys):
 2. ``narrowphase``  manifolds into the contact buffer (contacts.py)
 3. ``prepare``      rows, warm-start matching, schedule set-up (solvers/)
 4. ``iterations`` substeps of h / iterations (Box2D v3's soft step, see solvers/rows.py):
-   ``integrate_velocities`` (gravity), ``solve`` (warm start + one biased sweep of the
+   ``integrate_velocities`` (gravity), ``iterate`` (warm start + one biased sweep of the
    chosen schedule), ``integrate_positions`` (symplectic Euler, conservative rotation,
    finite guard), ``relax`` (one rigid sweep without position bias)
 5. ``relax``        restitution pass, impulses stored for the next step
@@ -230,7 +230,7 @@ class World:
         for _ in range(k):
             with p.stage("integrate_velocities"):
                 integrate_velocities(b.bodies, gravity, h_sub)
-            with p.stage("solve"):
+            with p.stage("iterate"):
                 if s.warm_start > 0.0:
                     self._warm_start()
                 for _ in range(s.sweeps):
