@@ -249,8 +249,11 @@ class World:
             store_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, k)
         flags = int(b.errors.flags[None])
         if flags:
+            from .persistence import clear_history
+
             body = int(b.errors.body[None])
             restore_good_state(b.bodies)
+            clear_history(b.history)  # this step's impulses are not finite either: no warm start from them
             stage = "solve (velocity)" if flags & 1 else "integrate_positions (pose)"
             name = self.body_name(body)
             raise SimulationError(

@@ -1,0 +1,29 @@
+"""A step that produces non-finite numbers stops with a message and keeps the last good state."""
+
+import numpy as np
+import pytest
+
+from sandbox import Scene, Settings, SimulationError, World
+
+from .conftest import box_body, scene_dict
+
+
+def test_diverging_step_names_stage_and_body_and_keeps_last_good_state():
+    # two stacked tall boxes under plain Jacobi (relaxation 1) blow up within one step
+    tall = (0.2, 0.2, 1.0)
+    scene = Scene.from_dict(scene_dict([box_body([0, 0, 1.0], half=tall), box_body([0, 0, 3.0], half=tall)]))
+    world = World(scene, solver="jacobi", iterations=1, arch="cpu", relaxation=1.0,
+                  settings=Settings(warm_start=0.0, sweeps=400))
+    before = world.state()
+    with pytest.raises(SimulationError) as err:
+        world.step(1)
+    text = str(err.value)
+    assert "non-finite" in text and "body" in text and "last good state" in text
+    after = world.state()
+    for key in before:
+        np.testing.assert_array_equal(before[key], after[key], err_msg=key)
+    # the world is still usable: switch to a convergent solver and go on
+    world.set_solver("mass-splitting", iterations=10)
+    world.settings = Settings()
+    world.step(30)
+    assert np.all(np.isfinite(world.state()["position"]))
