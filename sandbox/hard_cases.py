@@ -11,6 +11,7 @@ on any non-finite number (the world raises SimulationError).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -45,7 +46,7 @@ class Run:
 @dataclass
 class Case:
     name: str
-    scene: dict
+    scene: dict | Path  # a scene dict, or a shipped scene file
     steps: int
     judge: Callable[[Run], tuple[bool, str]]
     what: str
@@ -140,9 +141,31 @@ def resting_pile() -> Case:
                 "27 unit boxes (1000 kg) resting as a 3 x 3 x 3 block, 5 s: at rest (mean KE of the last second < 0.01 J)")
 
 
+SCENES = Path(__file__).resolve().parent.parent / "scenes"
+
+
+def _standing(tolerance: float):
+    def judge(r: Run):
+        moved = float(np.abs(r.final["position"] - r.start["position"]).max())
+        return moved < tolerance, f"largest displacement {1e3 * moved:.1f} mm"
+
+    return judge
+
+
+def friction_arch() -> Case:
+    return Case("friction_arch", SCENES / "friction_arch.toml", 600, _standing(0.01),
+                "scenes/friction_arch.toml (17 hull voussoirs, mu 0.6, loaded), 10 s: no body moves > 1 cm")
+
+
+def leaning_planks() -> Case:
+    return Case("leaning_planks", SCENES / "leaning_planks.toml", 600, _standing(0.005),
+                "scenes/leaning_planks.toml (card house, mu 0.7), 10 s: no plank moves > 5 mm")
+
+
 def all_cases() -> list[Case]:
     return [tall_stack(), heavy_on_light(100), heavy_on_light(1000), deep_overlap(), projectile(),
-            spinning_rod(), scaled_stack(0.001), scaled_stack(100.0), resting_pile()]
+            spinning_rod(), scaled_stack(0.001), scaled_stack(100.0), resting_pile(), friction_arch(),
+            leaning_planks()]
 
 
 def run_case(case: Case, solver: str, iterations: int, steps: int | None = None) -> tuple[bool, str]:
@@ -150,7 +173,8 @@ def run_case(case: Case, solver: str, iterations: int, steps: int | None = None)
     from . import Scene, World
     from .errors import SimulationError
 
-    world = World(Scene.from_dict(case.scene, source=case.name), solver=solver, iterations=iterations, arch="cpu")
+    scene = Scene.load(case.scene) if isinstance(case.scene, Path) else Scene.from_dict(case.scene, source=case.name)
+    world = World(scene, solver=solver, iterations=iterations, arch="cpu")
     run = Run(start=world.state())
     try:
         for _ in range(steps or case.steps):
