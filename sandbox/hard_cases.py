@@ -40,6 +40,7 @@ class Run:
     max_penetration: list = field(default_factory=list)  # [m]
     max_speed: list = field(default_factory=list)  # [m/s]
     start: dict = field(default_factory=dict)  # state() before the first step
+    settled: dict = field(default_factory=dict)  # state() after SETTLE_STEPS (method.md M7: drift from T_settle)
     final: dict = field(default_factory=dict)  # state() after the last step
 
 
@@ -144,22 +145,28 @@ def resting_pile() -> Case:
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 
 
+SETTLE_STEPS = 60
+"""[steps] Shipped structures are placed by hand with small gaps (a load box resting a few cm
+above the keystone, say); drift is measured from the state after this first second."""
+
+
 def _standing(tolerance: float):
     def judge(r: Run):
-        moved = float(np.abs(r.final["position"] - r.start["position"]).max())
-        return moved < tolerance, f"largest displacement {1e3 * moved:.1f} mm"
+        moved = float(np.abs(r.final["position"] - r.settled["position"]).max())
+        return moved < tolerance, f"largest displacement after the first second {1e3 * moved:.1f} mm"
 
     return judge
 
 
 def friction_arch() -> Case:
     return Case("friction_arch", SCENES / "friction_arch.toml", 600, _standing(0.01),
-                "scenes/friction_arch.toml (17 hull voussoirs, mu 0.6, loaded), 10 s: no body moves > 1 cm")
+                "scenes/friction_arch.toml (17 hull voussoirs, mu 0.6, loaded), 10 s: after the first second "
+                "(the load settles onto the keystone) no body moves > 1 cm")
 
 
 def leaning_planks() -> Case:
     return Case("leaning_planks", SCENES / "leaning_planks.toml", 600, _standing(0.005),
-                "scenes/leaning_planks.toml (card house, mu 0.7), 10 s: no plank moves > 5 mm")
+                "scenes/leaning_planks.toml (card house, mu 0.7), 10 s: after the first second no plank moves > 5 mm")
 
 
 def all_cases() -> list[Case]:
@@ -177,7 +184,9 @@ def run_case(case: Case, solver: str, iterations: int, steps: int | None = None)
     world = World(scene, solver=solver, iterations=iterations, arch="cpu")
     run = Run(start=world.state())
     try:
-        for _ in range(steps or case.steps):
+        for k in range(steps or case.steps):
+            if k == SETTLE_STEPS:
+                run.settled = world.state()
             world.step(1)
             m = world.metrics()
             st = world.state()
