@@ -31,7 +31,7 @@ after as many sweeps as the row's iteration count).
 
 Scaling: grid piles of growing size (``Scene.from_dict``), ms/step against bodies and
 contact points. Peers: when pybullet is importable, every box-and-plane scene also runs in
-pybullet (set up by ``benchmarks/peer_pybullet.py``, imported, not copied) with the same dt
+pybullet (set up by ``sandbox/peers.py``, shared with ``benchmarks/peer_pybullet.py``) with the same dt
 and ``numSolverIterations`` = iterations, through the same protocol, in the same process.
 
 Outputs in ``--out``: ``bench.csv`` and ``bench.json`` (one row per scene x solver x
@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import csv
 import dataclasses
-import importlib.util
 import json
 import math
 import os
@@ -59,7 +58,6 @@ import numpy as np
 from .profile import STAGES
 
 REPO = Path(__file__).resolve().parent.parent
-PEER_SCRIPT = REPO / "benchmarks" / "peer_pybullet.py"
 
 FULL = {
     "scenes": ("stack_20", "pyramid_20", "pile_1000"),
@@ -144,18 +142,14 @@ def marker_index(scene) -> int | None:
 
 
 def pybullet_peer():
-    """The pybullet set-up of ``benchmarks/peer_pybullet.py`` (the module), or None with the
-    reason when pybullet or the script is not there."""
+    """The pybullet set-up (``sandbox.peers``), or None with the reason when pybullet is missing."""
     try:
         import pybullet  # noqa: F401
     except ImportError:
         return None, "pybullet is not importable (pip install -e '.[peers]')"
-    if not PEER_SCRIPT.exists():
-        return None, f"{PEER_SCRIPT} not found (the pybullet set-up lives there; run from a source checkout)"
-    spec = importlib.util.spec_from_file_location("sandbox_peer_pybullet", PEER_SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module, ""
+    from . import peers
+
+    return peers, ""
 
 
 def pybullet_version() -> str:

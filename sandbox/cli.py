@@ -93,7 +93,7 @@ def cmd_run(args) -> int:
         print(f"report     {args.report}")
     if recorder is not None:
         size = recorder.save(args.record)
-        print(f"recording  {args.record}: {len(recorder._frames)} frames, {size / 1e6:.2f} MB")
+        print(f"recording  {args.record}: {recorder.frame_count} frames, {size / 1e6:.2f} MB")
     return 0
 
 

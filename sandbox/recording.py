@@ -73,6 +73,10 @@ class Recorder:
         self._frames = []
         self.capture()
 
+    @property
+    def frame_count(self) -> int:
+        return len(self._frames)
+
     def capture(self) -> None:
         st = self.world.state()
         self._frames.append(np.concatenate([st["position"], st["orientation"]], axis=1).astype(np.float32))
