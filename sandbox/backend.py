@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import ctypes
 import os
+import threading
 
 from .errors import SandboxError
 
 ARCHES = ("cpu", "cuda", "auto")
 _active: str | None = None
+_owner_thread: int | None = None
 
 
 def cuda_available() -> bool:
@@ -48,8 +50,13 @@ def resolve_arch(arch: str) -> str:
 
 def init(arch: str = "auto") -> str:
     """Initialise Taichi once for this process and return the arch in use."""
-    global _active
+    global _active, _owner_thread
     wanted = resolve_arch(arch)
+    if _active is not None and threading.get_ident() != _owner_thread:
+        # Taichi's LLVM context asserts (and aborts the call with a raw traceback) when
+        # another thread compiles: every Taichi call must come from the thread that started it.
+        raise SandboxError(f"Taichi was started in thread {_owner_thread} and can only be used from it "
+                           f"(this is thread {threading.get_ident()}); run the whole simulation in one thread")
     if _active is not None:
         if wanted != _active and arch != "auto":
             raise SandboxError(
@@ -74,6 +81,7 @@ def init(arch: str = "auto") -> str:
         advanced_optimization=False,
     )
     _active = wanted
+    _owner_thread = threading.get_ident()
     return wanted
 
 

@@ -743,7 +743,7 @@ def run(scenes=None, solvers=None, iterations=None, arch: str = "cpu", out="out/
     from tqdm import tqdm
 
     from . import Scene, backend
-    from .cli import _resolve_scene
+    from .scene.library import resolve_scene
     from .errors import SandboxError
     from .solvers import SOLVERS
 
@@ -762,7 +762,7 @@ def run(scenes=None, solvers=None, iterations=None, arch: str = "cpu", out="out/
     for key in ("settle", "window", "steps", "scaling_iterations"):
         if int(cfg[key]) < 1:
             raise SandboxError(f"--{key.replace('_', '-')} must be >= 1, got {cfg[key]}")
-    loaded = [(Path(_resolve_scene(name)).stem, Scene.load(_resolve_scene(name))) for name in cfg["scenes"]]
+    loaded = [(Path(resolve_scene(name)).stem, Scene.load(resolve_scene(name))) for name in cfg["scenes"]]
     arch = backend.init(arch)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

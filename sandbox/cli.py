@@ -1,5 +1,6 @@
 """The ``sandbox`` command: ``run`` a scene headless (optionally recording it), ``replay`` a
-recording, list the shipped ``scenes``."""
+recording, list the shipped ``scenes``, ``bench`` the solvers; ``serve`` (the web sandbox)
+comes from the ``web`` package as a plugin."""
 
 from __future__ import annotations
 
@@ -9,28 +10,14 @@ import sys
 import time
 from pathlib import Path
 
-SCENES_DIR = Path(__file__).resolve().parent.parent / "scenes"
-
-
-def _resolve_scene(name: str) -> Path:
-    p = Path(name)
-    if p.exists():
-        return p
-    for candidate in (SCENES_DIR / name, SCENES_DIR / f"{name}.toml"):
-        if candidate.exists():
-            return candidate
-    from .errors import SandboxError
-
-    known = ", ".join(sorted(q.stem for q in SCENES_DIR.glob("*.toml")))
-    raise SandboxError(f"no scene file {name!r} (and no shipped scene of that name; shipped: {known})")
-
-
 def cmd_run(args) -> int:
     from tqdm import tqdm
 
     from . import Scene, World
 
-    path = _resolve_scene(args.scene)
+    from .scene.library import resolve_scene
+
+    path = resolve_scene(args.scene)
     scene = Scene.load(path)
     options = {}
     if args.shuffle:
@@ -110,9 +97,10 @@ def cmd_replay(args) -> int:
 
 
 def cmd_scenes(args) -> int:
+    from .scene.library import shipped_scenes
     from .scene.loader import load_scene
 
-    for path in sorted(SCENES_DIR.glob("*.toml")):
+    for path in shipped_scenes():
         try:
             desc = load_scene(path).description.strip().splitlines()
         except Exception as exc:  # listing must not die on one bad file
@@ -138,6 +126,16 @@ def cmd_bench(args) -> int:
         scaling_sizes=ints(args.scaling_sizes, "--scaling-sizes"), scaling_iterations=args.scaling_iterations,
         shuffle=args.shuffle, peers=not args.no_peers, scaling=not args.no_scaling, quiet=args.quiet)
     return 0
+
+
+def _register_plugins(sub) -> None:
+    """Commands from other installed packages (the web sandbox's ``serve``): each entry point of
+    the group ``sandbox.commands`` is a function that adds its subparser. The engine never
+    imports them by name."""
+    from importlib.metadata import entry_points
+
+    for ep in sorted(entry_points(group="sandbox.commands"), key=lambda e: e.name):
+        ep.load()(sub)
 
 
 def main(argv=None) -> int:
@@ -186,6 +184,7 @@ def main(argv=None) -> int:
     bench.set_defaults(func=cmd_bench)
     scenes = sub.add_parser("scenes", help="list the shipped scenes")
     scenes.set_defaults(func=cmd_scenes)
+    _register_plugins(sub)
     args = parser.parse_args(argv)
     try:
         return args.func(args)

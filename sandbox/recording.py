@@ -68,8 +68,9 @@ class Recorder:
         self.scene_path = Path(scene_path).resolve()
         self.scene_text = self.scene_path.read_text(encoding="utf-8")
         self.settings = dataclasses.asdict(world.settings)
-        self.start_solver = (world.solver, world.iterations, dict(world.solver_options))
+        self.start_solver = world.initial_solver  # solver changes since step 0 are in the event log
         self.start_step = world.step_count
+        self.start_events = len(world.applied_events)  # events already in frame 0
         self._frames = []
         self.capture()
 
@@ -92,6 +93,7 @@ class Recorder:
             "solver_options": self.start_solver[2],
             "arch": self.world.arch,
             "start_step": self.start_step,
+            "start_events": self.start_events,
             "frames": len(self._frames),
             "events": [[step, _encode(event)] for step, event in self.world.applied_events],
         }
@@ -164,7 +166,16 @@ def replay(path, arch: str = "cpu", on_frame=None) -> dict:
                                                                if v is not None})
     world._pending = []  # the recorded log already holds the scripted events
     events = [(step, _decode(e)) for step, e in header["events"]]
-    world.step_count = header["start_step"]
+    # A recording started mid-run (the web sandbox's Record button) holds every event since
+    # step 0: re-simulate up to its first frame, which determinism makes exact.
+    before_start = events[: header.get("start_events", 0)]
+    events = events[len(before_start):]
+    while world.step_count < header["start_step"]:
+        while before_start and before_start[0][0] <= world.step_count:
+            world.apply_event(before_start.pop(0)[1])
+        world.step(1)
+    for _, event in before_start:
+        world.apply_event(event)
     first, worst = None, 0.0
     for k, recorded in enumerate(frames):
         if k > 0:

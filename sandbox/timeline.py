@@ -25,5 +25,11 @@ def apply_event(world, event) -> None:
         world.set_solver(event.solver, iterations=event.iterations, **event.options)
     elif kind == "iterations":
         world.set_solver(world.solver, iterations=event.iterations, **world.solver_options)
+    elif kind == "gravity":
+        world.set_gravity(event.gravity)
+    elif kind == "effects":
+        world.set_effects(event.effects)
+    elif kind == "timestep":
+        world.set_timestep(event.dt, event.substeps)
     else:
         raise SandboxError(f"unknown event kind {kind!r}")

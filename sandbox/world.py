@@ -73,6 +73,8 @@ class World:
         opts = dict(scene.solver.options)
         opts.update(solver_options)
         self.set_solver(solver or scene.solver.name, iterations=iterations or scene.solver.iterations, **opts)
+        self.initial_solver = (self.solver, self.iterations, dict(self.solver_options))
+        """The solver the world started with: a recording begun later re-simulates from step 0."""
 
     # ------------------------------------------------------------------ buffers
     def _acquire(self, caps) -> None:
@@ -96,6 +98,37 @@ class World:
         self.solver_options = check_solver(name, iterations, options)
         self.solver = name
         self.iterations = iterations
+
+    def set_gravity(self, gravity) -> None:
+        """A new gravity vector [m/s^2], from the next step on."""
+        self.gravity = _finite_vector(gravity, "gravity").astype(np.float32)
+
+    def set_effects(self, effects) -> None:
+        """Switch contact effects between steps ("friction", "restitution"); each combination
+        compiles its own kernels on first use, so an effect that is off costs nothing."""
+        from .scene.loader import EFFECTS
+
+        effects = tuple(effects)
+        unknown = [e for e in effects if e not in EFFECTS]
+        if unknown:
+            raise SandboxError(f"unknown effect(s) {unknown}; known: {list(EFFECTS)}")
+        self.friction = "friction" in effects
+        self.restitution = "restitution" in effects
+
+    @property
+    def effects(self) -> tuple:
+        return tuple(e for e, on in (("friction", self.friction), ("restitution", self.restitution)) if on)
+
+    def set_timestep(self, dt: float | None = None, substeps: int | None = None) -> None:
+        """A new step [s] and/or number of substeps; the state and warm start are kept."""
+        if dt is not None:
+            if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating)) or not (0.0 < dt <= 1.0):
+                raise SandboxError(f"dt must be a number of seconds in (0, 1], got {dt!r}")
+            self.dt = float(dt)
+        if substeps is not None:
+            if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or not 1 <= substeps <= 1000:
+                raise SandboxError(f"substeps must be an integer in 1..1000, got {substeps!r}")
+            self.substeps = int(substeps)
 
     # ------------------------------------------------------------------ edits and events
     def apply_event(self, event) -> None:
@@ -341,6 +374,12 @@ class World:
         if 0 <= i < len(self._bodies) and self._bodies[i].name:
             return f" ({self._bodies[i].name!r})"
         return ""
+
+    @property
+    def body_specs(self) -> tuple:
+        """Each body's description (shapes, mass, material, name) in index order. Positions
+        and velocities in it are those the body was added with; ``state()`` has the live ones."""
+        return tuple(self._bodies)
 
     def state(self) -> dict[str, np.ndarray]:
         """Body state as numpy arrays, one row per scene body: position (N,3) [m, centre of

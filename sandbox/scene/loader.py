@@ -108,6 +108,8 @@ EVENT_KEYS = {  # kind -> (allowed keys, required keys)
     "remove": (("time", "kind", "bodies"), ("time", "kind", "bodies")),
     "solver": (("time", "kind", "name", "iterations") + SOLVER_OPTION_KEYS, ("time", "kind", "name")),
     "iterations": (("time", "kind", "iterations"), ("time", "kind", "iterations")),
+    "gravity": (("time", "kind", "gravity"), ("time", "kind", "gravity")),
+    "effects": (("time", "kind", "effects"), ("time", "kind", "effects")),
 }
 
 
@@ -197,6 +199,7 @@ def _build(data, ctx: Context) -> Scene:
         event_keys=EVENT_KEYS,
         read_drop=lambda r, budget: _expanded(r, "rain", budget),
         read_solver=_read_solver_change,
+        read_effects=lambda r: r.string_set("effects", EFFECTS, what="effect"),
         claim_name=lambda name, r, key: _claim_name(names, name, r, key),
         budget=MAX_BODIES - len(scene.bodies),
     )

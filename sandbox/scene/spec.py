@@ -76,7 +76,8 @@ class EventSpec:
     the gaps (the loader replays the timeline to check every index)."""
 
     time: float  # [s] >= 0, and <= the scene's duration when it has one
-    kind: str  # "drop" | "set_velocity" | "impulse" | "remove" | "solver" | "iterations"
+    kind: str  # "drop" | "set_velocity" | "impulse" | "remove" | "solver" | "iterations" | "gravity" | "effects"
+    #            | "timestep" (interactive only: the web sandbox's dt / substeps controls)
     new_bodies: list = field(default_factory=list)  # drop: BodySpecs (generated, seeded)
     bodies: list = field(default_factory=list)  # set_velocity / impulse / remove: body indices
     linear_velocity: np.ndarray | None = None  # set_velocity [m/s]; None keeps it
@@ -86,6 +87,10 @@ class EventSpec:
     solver: str | None = None  # solver: the new solver's name
     iterations: int | None = None  # solver / iterations: the new iteration count
     options: dict = field(default_factory=dict)  # solver: its options
+    gravity: np.ndarray | None = None  # gravity: the new gravity vector [m/s^2]
+    effects: tuple | None = None  # effects: the contact effects now on (a subset of loader.EFFECTS)
+    dt: float | None = None  # timestep: the new step [s]
+    substeps: int | None = None  # timestep: the new number of substeps
 
 
 @dataclass

@@ -8,7 +8,12 @@ Each event has a ``time`` [s] and a ``kind``:
 * ``impulse``: a linear impulse [N s] on some bodies, at their centre of mass or a world point;
 * ``remove``: bodies leave the world (later bodies move down to close the gap);
 * ``solver``: switch to another solver (with the ``[solver]`` table's validation and options);
-* ``iterations``: change the solver's iteration count.
+* ``iterations``: change the solver's iteration count;
+* ``gravity``: a new gravity vector (``gravity = [0, 0, 0]`` switches it off);
+* ``effects``: the contact effects now on (``effects = ["friction"]``: restitution off).
+
+The engine also applies ``timestep`` events (new dt and substeps), which only the web
+sandbox issues: a scene file's event times are converted to steps with the scene's dt.
 
 Events are sorted by time, stably (two events at the same time keep their file
 order). Body references (``bodies = [...]``) are names or integer indices into
@@ -33,7 +38,7 @@ import numpy as np
 from .schema import Reader
 from .spec import BodySpec, EventSpec
 
-EVENT_KINDS = ("drop", "set_velocity", "impulse", "remove", "solver", "iterations")
+EVENT_KINDS = ("drop", "set_velocity", "impulse", "remove", "solver", "iterations", "gravity", "effects")
 PUSHING_KINDS = ("set_velocity", "impulse")
 """Events that move bodies and therefore cannot target static ones."""
 MAX_ITERATIONS = 1_000_000
@@ -47,12 +52,12 @@ class _Parsed:
 
 
 def read_events(readers: list[Reader], *, duration, bodies: list[BodySpec], mesh_names: set, event_keys: dict,
-                read_drop, read_solver, claim_name, budget: int) -> list[EventSpec]:
+                read_drop, read_solver, read_effects, claim_name, budget: int) -> list[EventSpec]:
     """Parse, sort and replay the ``[[event]]`` entries; returns the sorted ``EventSpec``s.
 
     ``event_keys[kind]`` = (allowed keys, required keys); ``read_drop(r, budget)``
     returns the drop's BodySpecs; ``read_solver(r)`` returns (name, iterations or
-    None, options); ``claim_name(name, r, key)`` rejects a name already in use.
+    None, options); ``read_effects(r)`` returns the set of effects named by ``effects``; ``claim_name(name, r, key)`` rejects a name already in use.
     """
     parsed: list[_Parsed] = []
     drops_by_name: dict[str, _Parsed] = {}
@@ -86,6 +91,10 @@ def read_events(readers: list[Reader], *, duration, bodies: list[BodySpec], mesh
                 ev.point = r.vector("point", 3, None)
         elif kind == "solver":
             ev.solver, ev.iterations, ev.options = read_solver(r)
+        elif kind == "gravity":
+            ev.gravity = r.vector("gravity", 3)
+        elif kind == "effects":
+            ev.effects = tuple(sorted(read_effects(r)))
         else:  # iterations
             ev.iterations = r.integer("iterations", minimum=1, maximum=MAX_ITERATIONS)
         parsed.append(item)

@@ -1,0 +1,207 @@
+"""The web sandbox in a real browser: Debian's Chromium driven by Playwright against a
+``sandbox serve`` started here on a free localhost port.
+
+Without a browser the test skips on a developer machine but fails under CI (CI=true):
+``.ci/run`` installs Chromium, so a missing one there is a broken set-up, not a reason to skip.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import shutil
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENE = ROOT / "tests" / "data" / "web_scene.toml"
+ARTIFACTS = Path(os.environ.get("SANDBOX_ARTIFACTS", ROOT / "artifacts"))
+CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
+                 "--disable-component-update", "--disable-sync", "--no-first-run"]
+START_TIMEOUT_S = 300  # compiling the kernels on a busy 2-core machine
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _chromium() -> str | None:
+    for candidate in (os.environ.get("SANDBOX_CHROMIUM"), "/usr/bin/chromium", shutil.which("chromium"),
+                      shutil.which("chromium-browser")):
+        if candidate and Path(candidate).exists():
+            return candidate
+    return None
+
+
+def _no_browser(reason: str):
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(f"CI=true but no browser could be started: {reason}")
+    pytest.skip(reason)
+
+
+class Server:
+    """``sandbox serve`` in a subprocess; its output is collected for assertions."""
+
+    def __init__(self, *args: str):
+        self.port = _free_port()
+        env = {**os.environ, "TI_SKIP_VERSION_CHECK": "ON", "PYTHONUNBUFFERED": "1"}
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "sandbox.cli", "serve", *args, "--port", str(self.port), "--arch", "cpu"],
+            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.lines: list[str] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        for line in self.proc.stdout:
+            self.lines.append(line.rstrip("\n"))
+
+    def wait_for(self, pattern: str, timeout: float) -> re.Match:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for line in list(self.lines):
+                m = re.search(pattern, line)
+                if m:
+                    return m
+            if self.proc.poll() is not None:
+                time.sleep(0.2)  # let the reader drain the last lines
+                raise AssertionError(f"server exited ({self.proc.returncode}) before {pattern!r}:\n" + self.output)
+            time.sleep(0.1)
+        raise AssertionError(f"no {pattern!r} from the server within {timeout} s:\n" + self.output)
+
+    @property
+    def output(self) -> str:
+        return "\n".join(self.lines)
+
+    def stop(self) -> None:
+        self.proc.terminate()
+        try:
+            self.proc.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+
+
+@pytest.fixture(scope="module")
+def browser():
+    chromium = _chromium()
+    if chromium is None:
+        _no_browser("no Chromium found (apt-get install chromium, or set SANDBOX_CHROMIUM)")
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        _no_browser("playwright is not installed (pip install -e '.[test]')")
+    with sync_playwright() as p:
+        try:
+            b = p.chromium.launch(executable_path=chromium, headless=True, args=CHROMIUM_ARGS)
+        except Exception as exc:  # any launch failure is "no browser"
+            _no_browser(f"Chromium at {chromium} did not start: {exc}")
+        yield b
+        b.close()
+
+
+@pytest.fixture(scope="module")
+def server():
+    s = Server(str(SCENE), "--solver", "mass-splitting", "--iterations", "15")
+    try:
+        s.url = s.wait_for(r"sandbox serve: (http://\S+)", START_TIMEOUT_S).group(1)
+        yield s
+    finally:
+        s.stop()
+
+
+def _status(page) -> str:
+    return page.get_by_text(re.compile(r"\d+ bodies")).first.inner_text()
+
+
+def _wait_status(page, pattern: str, timeout: float = 60.0) -> re.Match:
+    deadline = time.monotonic() + timeout
+    text = ""
+    while time.monotonic() < deadline:
+        text = _status(page)
+        m = re.search(pattern, text)
+        if m:
+            return m
+        time.sleep(0.25)
+    raise AssertionError(f"status never matched {pattern!r}; last: {text!r}")
+
+
+def _choose(page, label: str, option: str) -> None:
+    page.get_by_label(label, exact=True).click()
+    page.get_by_role("option", name=option, exact=True).click()
+
+
+def test_browser_session(browser, server):
+    import matplotlib.image
+
+    page = browser.new_page(viewport={"width": 1280, "height": 800})
+    page.goto(server.url)
+    page.get_by_role("button", name="Drop debris").wait_for(state="visible", timeout=60_000)
+    n0 = int(_wait_status(page, r"(\d+) bodies").group(1))
+    assert n0 == 4
+
+    # The 3D canvas shows the world: many colours, not one blank fill.
+    canvas = page.locator("canvas").first
+    pixels = matplotlib.image.imread(io.BytesIO(canvas.screenshot()), format="png")[..., :3]
+    colours = np.unique((pixels.reshape(-1, 3) * 255).astype(np.uint8), axis=0)
+    background = np.all(np.abs(pixels - pixels[0, 0]) < 0.02, axis=-1)
+    assert len(colours) > 50, f"canvas looks blank: {len(colours)} distinct colours"
+    assert 0.02 < background.mean() < 0.98 or len(colours) > 500
+
+    # Drop debris: the body count in the page rises by the count asked for.
+    _choose(page, "Shapes", "boxes")
+    page.get_by_role("button", name="Drop debris").click()
+    n1 = int(_wait_status(page, rf"({n0 + 20}) bodies").group(1))
+    assert n1 == n0 + 20
+    server.wait_for(r"\[sandbox\] drop 20 boxes", 30)
+
+    # The solver dropdown switches the server's solver (its log and the page's status line,
+    # which is read back from the world).
+    _choose(page, "Solver", "pgs-colored")
+    server.wait_for(r"\[sandbox\] solver pgs-colored \(15 iterations\)", 60)
+    _wait_status(page, r"pgs-colored × 15")
+
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    shot = ARTIFACTS / "web_sandbox.png"
+    page.screenshot(path=str(shot))
+    assert shot.stat().st_size > 10_000
+    page.close()
+
+
+def test_second_tab_sees_the_same_world_and_closing_one_keeps_the_server(browser, server):
+    first = browser.new_page()
+    first.goto(server.url)
+    first.get_by_role("button", name="Drop debris").wait_for(state="visible", timeout=60_000)
+    bodies = _wait_status(first, r"(\d+) bodies").group(1)
+    first.close()
+    second = browser.new_page()
+    second.goto(server.url)
+    second.get_by_role("button", name="Drop debris").wait_for(state="visible", timeout=60_000)
+    assert _wait_status(second, r"(\d+) bodies").group(1) == bodies
+    assert server.proc.poll() is None
+    second.close()
+
+
+def test_unknown_scene_and_busy_port_are_clear_errors():
+    env = {**os.environ, "TI_SKIP_VERSION_CHECK": "ON"}
+    bad = subprocess.run([sys.executable, "-m", "sandbox.cli", "serve", "no_such_scene", "--port", "0"],
+                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+    assert bad.returncode == 2
+    assert "no scene file 'no_such_scene'" in bad.stderr and "Traceback" not in bad.stderr
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        busy = subprocess.run([sys.executable, "-m", "sandbox.cli", "serve", str(SCENE), "--port", str(port)],
+                              cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+    assert busy.returncode == 2
+    assert f"port {port} on 127.0.0.1 is busy" in busy.stderr and "Traceback" not in busy.stderr

@@ -1,0 +1,312 @@
+"""The control panel: every GUI element, what it asks the simulation to do, and the live
+stats and plots.
+
+Callbacks run in viser's thread pool, so each one only builds a command and submits it;
+the simulation thread applies it between steps (``simulation.Simulation``). A command that
+fails shows a notification in the tab that asked for it, and the world goes on.
+"""
+
+from __future__ import annotations
+
+import functools
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sandbox.scene.library import shipped_scenes
+from sandbox.scene.loader import EFFECTS
+from sandbox.scene.spec import EventSpec
+from sandbox.solvers import SOLVERS
+
+from .debris import DEBRIS_MIXES, debris_bodies
+from .render import COLOR_MODES
+
+TIME_STEPS = {"1/30 s": 1 / 30, "1/60 s": 1 / 60, "1/120 s": 1 / 120, "1/240 s": 1 / 240}
+MAX_ITERATIONS = 100
+
+
+def _user_action(callback):
+    """Run a widget callback only for changes a user made: ``refresh`` writing the world's
+    value into a widget fires the callback in the refreshing thread, and that must not echo
+    back to the world as a new command."""
+    @functools.wraps(callback)
+    def guarded(self, event) -> None:
+        if getattr(self._local, "syncing", False):
+            return
+        callback(self, event)
+    return guarded
+
+
+class ControlPanel:
+    def __init__(self, server, sim, recordings_dir: Path):
+        self.server = server
+        self.sim = sim
+        self.recordings_dir = Path(recordings_dir)
+        self.selected: int | None = None
+        self.color_mode = "shape"
+        self._drops = 0
+        self._render_fps = 0.0
+        self._shown: dict = {}  # what the widgets show, to skip redundant updates
+        self._local = threading.local()
+        self._build()
+
+    # ------------------------------------------------------------------ layout
+    def _build(self) -> None:
+        gui = self.server.gui
+        snap = self.sim.latest()
+        self.status = gui.add_markdown("**Starting…**")
+        with gui.add_folder("Scene"):
+            names = [p.stem for p in shipped_scenes()]
+            current = self.sim.scene_path.stem
+            self.scene = gui.add_dropdown("Scene", names if current in names else [current, *names],
+                                          initial_value=current)
+            self.scene.on_update(self._on_scene)
+            world_buttons = gui.add_button_group("World", ("Play", "Pause", "Step", "Reset"))
+            world_buttons.on_click(self._on_world_button)
+        with gui.add_folder("Solver"):
+            self.solver = gui.add_dropdown("Solver", list(SOLVERS), initial_value=snap.solver)
+            self.solver.on_update(self._on_solver)
+            self.shuffle = gui.add_checkbox("Shuffle order (pgs-colored)", False,
+                                            hint="Permute contacts and colours every step, as parallel hardware does")
+            self.shuffle.on_update(self._on_solver)
+            self.iterations = gui.add_slider("Iterations", 1, MAX_ITERATIONS, 1, int(min(snap.iterations, MAX_ITERATIONS)))
+            self.iterations.on_update(self._on_iterations)
+            dt_label = min(TIME_STEPS, key=lambda k: abs(TIME_STEPS[k] - snap.dt))
+            self.dt = gui.add_dropdown("Time step", list(TIME_STEPS), initial_value=dt_label)
+            self.dt.on_update(self._on_timestep)
+            self.substeps = gui.add_slider("Substeps", 1, 8, 1, int(min(snap.substeps, 8)))
+            self.substeps.on_update(self._on_timestep)
+        with gui.add_folder("Stats", expand_by_default=True):
+            self.stats = gui.add_markdown("")
+            empty = (np.zeros(1), np.full(1, 1e-12))
+            self.ke_plot = gui.add_uplot(empty, ({"label": "step"}, {"label": "kinetic energy [J]", "stroke": "#d62728"}),
+                                         title="Kinetic energy (log)", scales={"y": {"distr": 3}}, aspect=1.6)
+            self.res_plot = gui.add_uplot(empty, ({"label": "step"}, {"label": "LCP residual RMS [m/s]",
+                                                                       "stroke": "#1f77b4"}),
+                                          title="Solver residual (log)", scales={"y": {"distr": 3}}, aspect=1.6)
+        with gui.add_folder("Effects"):
+            self.gravity = gui.add_checkbox("Gravity", snap.gravity_on)
+            self.gravity.on_update(self._on_gravity)
+            self.effects = {e: gui.add_checkbox(e.capitalize(), e in snap.effects) for e in EFFECTS}
+            for box in self.effects.values():
+                box.on_update(self._on_effects)
+            self.realtime = gui.add_checkbox("Real time", True, hint="Off: step as fast as the machine can")
+            self.realtime.on_update(lambda _: self.sim.submit("real time", self._set_realtime(self.realtime.value)))
+        with gui.add_folder("Drop debris"):
+            self.debris_count = gui.add_slider("Count", 1, 200, 1, 20)
+            self.debris_mix = gui.add_dropdown("Shapes", DEBRIS_MIXES, initial_value="mixed")
+            self.drop = gui.add_button("Drop debris", icon=None)
+            self.drop.on_click(self._on_drop)
+        with gui.add_folder("Selection"):
+            self.selection = gui.add_markdown("Click a body to select it.")
+            self.remove = gui.add_button("Remove selected", disabled=True)
+            self.remove.on_click(self._on_remove)
+        with gui.add_folder("View"):
+            self.colors = gui.add_dropdown("Colour by", COLOR_MODES, initial_value="shape",
+                                           hint="speed: blue at rest, red moving (jitter shows up)")
+            self.colors.on_update(lambda _: setattr(self, "color_mode", self.colors.value))
+            self.contacts = gui.add_checkbox("Contact points", False)
+            self.contacts.on_update(lambda _: self.sim.submit("contacts", self._set_contacts(self.contacts.value)))
+        with gui.add_folder("Record"):
+            self.record = gui.add_button_group("Recording", ("Record", "Stop & save"))
+            self.record.on_click(self._on_record)
+            self.record_status = gui.add_markdown("Not recording.")
+    # ------------------------------------------------------------------ callbacks (viser's threads)
+    def _notify(self, event, title: str):
+        client = getattr(event, "client", None)
+
+        def show(message: str) -> None:
+            self._shown.clear()  # the widgets may now show a value the world refused: resync
+            if client is not None:
+                client.add_notification(title, message, color="red", auto_close_seconds=8.0)
+        return show
+
+    @_user_action
+    def _on_scene(self, event) -> None:
+        from sandbox.scene.library import resolve_scene
+
+        name = self.scene.value
+        if name == self.sim.scene_path.stem:
+            return
+        self.selected = None
+        self.sim.submit(f"scene {name}", lambda s: s.load(resolve_scene(name)), on_error=self._notify(event, "Scene"))
+
+    @_user_action
+    def _on_world_button(self, event) -> None:
+        choice = event.target.value
+        if choice == "Play":
+            self.sim.submit("play", lambda s: setattr(s, "playing", True))
+        elif choice == "Pause":
+            self.sim.submit("pause", lambda s: setattr(s, "playing", False))
+        elif choice == "Step":
+            self.sim.submit("step", lambda s: s.step_once())
+        elif choice == "Reset":
+            self.selected = None
+            self.sim.submit("reset", lambda s: s.load(), on_error=self._notify(event, "Reset"))
+
+    @_user_action
+    def _on_solver(self, event) -> None:
+        name = self.solver.value
+        options = {"shuffle": True} if name == "pgs-colored" and self.shuffle.value else {}
+        iterations = int(self.iterations.value)
+        ev = EventSpec(time=0.0, kind="solver", solver=name, iterations=iterations, options=options)
+        self.sim.submit(f"solver {name} ({iterations} iterations{', shuffled' if options else ''})",
+                        lambda s: s.apply(_timed(s, ev)), on_error=self._notify(event, "Solver"))
+
+    @_user_action
+    def _on_iterations(self, event) -> None:
+        ev = EventSpec(time=0.0, kind="iterations", iterations=int(self.iterations.value))
+        self.sim.submit(f"iterations {ev.iterations}", lambda s: s.apply(_timed(s, ev)),
+                        on_error=self._notify(event, "Iterations"))
+
+    @_user_action
+    def _on_timestep(self, event) -> None:
+        ev = EventSpec(time=0.0, kind="timestep", dt=TIME_STEPS[self.dt.value], substeps=int(self.substeps.value))
+        self.sim.submit(f"time step {self.dt.value} x {ev.substeps} substeps", lambda s: s.apply(_timed(s, ev)),
+                        on_error=self._notify(event, "Time step"))
+
+    @_user_action
+    def _on_gravity(self, event) -> None:
+        on = bool(self.gravity.value)
+
+        def run(s):
+            g = s.gravity if on else np.zeros(3)
+            s.apply(_timed(s, EventSpec(time=0.0, kind="gravity", gravity=np.array(g, dtype=np.float64))))
+        self.sim.submit(f"gravity {'on' if on else 'off'}", run, on_error=self._notify(event, "Gravity"))
+
+    @_user_action
+    def _on_effects(self, event) -> None:
+        effects = tuple(sorted(e for e, box in self.effects.items() if box.value))
+        ev = EventSpec(time=0.0, kind="effects", effects=effects)
+        self.sim.submit(f"effects {list(effects)}", lambda s: s.apply(_timed(s, ev)),
+                        on_error=self._notify(event, "Effects"))
+
+    @_user_action
+    def _on_drop(self, event) -> None:
+        count, mix = int(self.debris_count.value), self.debris_mix.value
+        self._drops += 1
+        seed = self._drops
+
+        def run(s):
+            bodies = debris_bodies(s.latest(), count, mix, seed)
+            s.apply(_timed(s, EventSpec(time=0.0, kind="drop", new_bodies=bodies)))
+            return len(bodies)
+        self.sim.submit(f"drop {count} {mix}", run, on_error=self._notify(event, "Drop debris"))
+
+    @_user_action
+    def _on_remove(self, event) -> None:
+        body = self.selected
+        if body is None:
+            return
+        self.selected = None
+        self.sim.submit(f"remove body {body}", lambda s: s.apply(_timed(s, EventSpec(time=0.0, kind="remove",
+                                                                                        bodies=[body]))),
+                        on_error=self._notify(event, "Remove"))
+
+    @_user_action
+    def _on_record(self, event) -> None:
+        if event.target.value == "Record":
+            self.sim.submit("record", lambda s: s.start_recording(), on_error=self._notify(event, "Record"))
+            return
+        self.recordings_dir.mkdir(parents=True, exist_ok=True)
+        path = self.recordings_dir / time.strftime("sandbox-%Y%m%d-%H%M%S.sbrec")
+        client = event.client
+
+        def saved(result) -> None:
+            if result is None:
+                self.record_status.content = "Not recording."
+                return
+            path_, size, frames = result
+            self.record_status.content = f"Saved **{path_.name}**: {frames} frames, {size / 1e6:.2f} MB."
+            if client is not None:
+                client.send_file_download(path_.name, path_.read_bytes())
+        self.sim.submit("stop recording", lambda s: s.stop_recording(path), on_error=self._notify(event, "Record"),
+                        on_done=saved)
+
+    @staticmethod
+    def _set_realtime(on: bool):
+        return lambda s: setattr(s, "realtime", on)
+
+    @staticmethod
+    def _set_contacts(on: bool):
+        return lambda s: setattr(s, "draw_contacts", on)
+
+    def pick(self, body: int) -> None:
+        self.selected = None if self.selected == body else body
+
+    # ------------------------------------------------------------------ refresh (render thread)
+    def refresh(self, snap, render_fps: float) -> None:
+        """Bring the widgets in line with the world (another tab or a scripted event may have
+        changed it) and update the stats and plots."""
+        self._sync(self.solver, snap.solver)
+        self._sync(self.iterations, min(snap.iterations, MAX_ITERATIONS))
+        self._sync(self.gravity, snap.gravity_on)
+        for e, box in self.effects.items():
+            self._sync(box, e in snap.effects)
+        if self.sim.scene_path.stem in self.scene.options:
+            self._sync(self.scene, self.sim.scene_path.stem)
+        state = "▶ running" if snap.playing else "⏸ paused"
+        rec = " · ⏺ recording" if snap.recording else ""
+        self._set(self.status, "content", f"**{self.sim.scene_path.stem}** · {len(snap.bodies)} bodies · "
+                                          f"{snap.solver} × {snap.iterations} · {state}{rec}")
+        m, t = snap.metrics, snap.timing_ms
+        stages = " · ".join(f"{k} {t.get(k, 0.0):.2f}" for k in ("collide", "solve", "integrate"))
+        lines = [
+            f"| | |\n|---|---|",
+            f"| bodies | **{len(snap.bodies)}** |",
+            f"| contacts | {m['contacts']} ({m['manifolds']} manifolds) |",
+        ]
+        if "colors" in m:
+            lines.append(f"| colours | {m['colors']} |")
+        lines += [
+            f"| step | {snap.step} (t = {snap.step * snap.dt:.2f} s) |",
+            f"| sim | {snap.steps_per_second:.1f} steps/s ({snap.realtime_factor:.2f}× real time) |",
+            f"| render | {render_fps:.1f} FPS |",
+            f"| ms/step | {t.get('total', 0.0):.2f} ({stages}) |",
+            f"| kinetic energy | {m['kinetic_energy']:.3e} J |",
+            f"| max penetration | {1e3 * m['max_penetration']:.2f} mm |",
+            f"| residual RMS | {m['residual_rms']:.2e} m/s |",
+        ]
+        self._set(self.stats, "content", "\n".join(lines))
+        h = snap.history
+        if len(h["step"]):
+            self.ke_plot.data = (h["step"], h["kinetic_energy"])
+            self.res_plot.data = (h["step"], h["residual_rms"])
+        if self.selected is not None and self.selected >= len(snap.bodies):
+            self.selected = None
+        if self.selected is None:
+            text = "Click a body to select it."
+        else:
+            body = snap.bodies[self.selected]
+            kinds = "+".join(s.kind for s in body.shapes)
+            text = (f"Body **{self.selected}**{f' ({body.name})' if body.name else ''}: {kinds}, "
+                    f"{'static' if body.static else f'{body.mass:.3g} kg'}, "
+                    f"|v| = {snap.speeds[self.selected]:.3g} m/s")
+        self._set(self.selection, "content", text)
+        self._set(self.remove, "disabled", self.selected is None)
+
+    def _sync(self, handle, value) -> None:
+        """Show the world's value without firing the widget's callback again."""
+        key = id(handle)
+        if self._shown.get(key) != value:
+            self._shown[key] = value
+            if handle.value != value:
+                self._local.syncing = True
+                try:
+                    handle.value = value
+                finally:
+                    self._local.syncing = False
+
+    def _set(self, handle, prop: str, value) -> None:
+        key = (id(handle), prop)
+        if self._shown.get(key) != value:
+            self._shown[key] = value
+            setattr(handle, prop, value)
+
+
+def _timed(sim, event: EventSpec) -> EventSpec:
+    """Stamp an interactive event with the world's current time (for recordings' logs)."""
+    event.time = sim.world.step_count * sim.world.dt
+    return event

@@ -1,0 +1,294 @@
+"""The simulation thread: the only thread that touches Taichi.
+
+GUI callbacks run in viser's thread pool; they never call the engine. They ``submit`` a
+command (a function of the ``Simulation``), and the simulation thread runs the queued
+commands between steps, in order. After every step it publishes an immutable
+``Snapshot`` (numpy copies of the poses and the metrics) that the render loop reads
+whenever it is ready: rendering never slows the simulation, it only skips snapshots.
+
+The world steps at its fixed dt, paced to real time when it can keep up; when it
+cannot, it runs as fast as it can and the stats say so (``realtime_factor``).
+"""
+
+from __future__ import annotations
+
+import collections
+import queue
+import threading
+import time
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from sandbox import SandboxError, Scene, SimulationError
+from sandbox.scene.spec import EventSpec
+
+HISTORY = 600  # frames kept for the live plots
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """What the render loop needs from one step; never mutated after publication."""
+
+    world_id: int  # bumps when the world is rebuilt (scene change, reset)
+    generation: int  # bumps when the body list changes (drop, remove, fracture, reset)
+    step: int
+    positions: np.ndarray  # (N, 3) float32
+    orientations: np.ndarray  # (N, 4) float32, w x y z
+    speeds: np.ndarray  # (N,) float32 [m/s]
+    bodies: tuple  # BodySpecs of this generation (shared, read-only)
+    scene: Scene
+    metrics: dict
+    history: dict  # "step", "kinetic_energy", "residual_rms": (F,) arrays of the last HISTORY frames
+    timing_ms: dict  # mean ms per step by stage over the last stats window
+    steps_per_second: float
+    realtime_factor: float
+    solver: str
+    iterations: int
+    dt: float
+    substeps: int
+    effects: tuple
+    gravity_on: bool
+    playing: bool
+    recording: bool
+    contacts: dict | None = None  # "point", "normal" when contact drawing is on
+
+
+@dataclass
+class Command:
+    label: str
+    run: object  # callable(Simulation) -> object
+    on_error: object = None  # callable(str) or None
+    on_done: object = None  # callable(result) or None
+
+
+@dataclass
+class _Stats:
+    window_start: float = field(default_factory=time.perf_counter)
+    steps: int = 0
+    sim_seconds: float = 0.0
+    steps_per_second: float = 0.0
+    realtime_factor: float = 0.0
+    timing_ms: dict = field(default_factory=dict)
+
+
+class Simulation:
+    """Owns the World; ``submit`` commands from any thread, read ``latest`` from any thread."""
+
+    STATS_WINDOW_S = 0.5
+
+    def __init__(self, scene_path: Path, *, arch: str = "cpu", solver: str | None = None,
+                 iterations: int | None = None, log=print):
+        self.scene_path = Path(scene_path)
+        self.arch = arch
+        self.solver = solver
+        self.iterations = iterations
+        self.log = log
+        self.world = None
+        self.playing = True
+        self.realtime = True
+        self.draw_contacts = False
+        self.recorder = None
+        self.gravity = None  # the scene's gravity, restored by "gravity on"
+        self._queue: queue.Queue[Command] = queue.Queue()
+        self._latest: Snapshot | None = None
+        self._latest_lock = threading.Lock()
+        self._world_id = 0
+        self._generation = 0
+        self._single_steps = 0
+        self._stop = threading.Event()
+        self._ready = threading.Event()
+        self._history = {k: collections.deque(maxlen=HISTORY) for k in ("step", "kinetic_energy", "residual_rms")}
+        self._stats = _Stats()
+        self.startup_error: BaseException | None = None
+        self._thread = threading.Thread(target=self._main, name="simulation", daemon=True)
+
+    # ------------------------------------------------------------------ any thread
+    def start(self, timeout: float = 600.0) -> None:
+        """Start the thread and wait until the first world is built (compiled) or failed."""
+        self._thread.start()
+        self._ready.wait(timeout)
+        if self.startup_error is not None:
+            raise self.startup_error
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=10.0)
+
+    def submit(self, label: str, run, on_error=None, on_done=None) -> None:
+        self._queue.put(Command(label, run, on_error, on_done))
+
+    def latest(self) -> Snapshot | None:
+        with self._latest_lock:
+            return self._latest
+
+    # ------------------------------------------------------------------ commands (simulation thread)
+    def load(self, scene_path: Path | None = None) -> None:
+        """(Re)build the world from a scene file: scene change and reset."""
+        from sandbox import World
+
+        if scene_path is not None:
+            scene = Scene.load(scene_path)  # a broken file raises here and the old world stays
+            self.scene_path = Path(scene_path)
+        else:
+            scene = Scene.load(self.scene_path)
+        old = self.world
+        solver = self.world.solver if self.world is not None else self.solver
+        iterations = self.world.iterations if self.world is not None else self.iterations
+        options = dict(self.world.solver_options) if self.world is not None else {}
+        self.stop_recording()
+        world = World(scene, solver=solver, iterations=iterations, arch=self.arch, profile=True,
+                      **{k: v for k, v in options.items() if v is not None})
+        if old is not None:
+            old.close()
+        self.world = world
+        self.gravity = np.array(world.gravity, dtype=np.float64)
+        self._world_id += 1
+        self._generation += 1
+        for series in self._history.values():
+            series.clear()
+        self._publish()
+
+    def apply(self, event: EventSpec) -> None:
+        """An edit of the running world, logged like a scripted event (recordings replay it)."""
+        n = self.world.body_count
+        self.world.apply_event(event)
+        if event.kind in ("drop", "remove", "fracture") or self.world.body_count != n:
+            self._generation += 1
+
+    def step_once(self) -> None:
+        self.playing = False
+        self._single_steps += 1
+
+    def start_recording(self) -> None:
+        from sandbox.recording import Recorder
+
+        if self.recorder is None:
+            self.recorder = Recorder(self.world, self.scene_path)
+
+    def stop_recording(self, path: Path | None = None) -> tuple[Path, int, int] | None:
+        """Stop; with ``path``, save there. Returns (path, bytes, frames) when saved."""
+        recorder, self.recorder = self.recorder, None
+        if recorder is None or path is None:
+            return None
+        size = recorder.save(path)
+        return Path(path), size, recorder.frame_count
+
+    # ------------------------------------------------------------------ the thread
+    def _main(self) -> None:
+        from sandbox import backend
+
+        try:
+            backend.init(self.arch)  # Taichi belongs to the thread that starts it: this one
+            self.load()
+        except BaseException as exc:  # reported to the starting thread, which raises it
+            self.startup_error = exc
+            self._ready.set()
+            return
+        self._ready.set()
+        next_tick = time.perf_counter()
+        while not self._stop.is_set():
+            self._run_commands()
+            if not (self.playing or self._single_steps):
+                time.sleep(0.01)
+                next_tick = time.perf_counter()
+                continue
+            self._single_steps = max(0, self._single_steps - 1)
+            if self._step():
+                self._publish(new_frame=True)
+            if self.realtime:
+                next_tick += self.world.dt
+                lag = next_tick - time.perf_counter()
+                if lag > 0:
+                    time.sleep(lag)
+                elif lag < -0.25:  # cannot keep up: do not try to catch up later
+                    next_tick = time.perf_counter()
+
+    def _run_commands(self) -> None:
+        while True:
+            try:
+                cmd = self._queue.get_nowait()
+            except queue.Empty:
+                return
+            try:
+                result = cmd.run(self)
+            except SandboxError as exc:
+                self._report(cmd, f"{cmd.label}: {exc}")
+            except Exception as exc:  # a GUI action must never kill the simulation thread
+                traceback.print_exc()
+                self._report(cmd, f"{cmd.label} failed: {type(exc).__name__}: {exc}")
+            else:
+                self.log(f"[sandbox] {cmd.label}")
+                if cmd.on_done is not None:
+                    cmd.on_done(result)
+                self._publish()
+
+    def _report(self, cmd: Command, message: str) -> None:
+        self.log(f"[sandbox] {message}")
+        if cmd.on_error is not None:
+            cmd.on_error(message)
+
+    def _step(self) -> bool:
+        try:
+            self.world.step(1)
+        except SimulationError as exc:
+            self.playing = False
+            self.log(f"[sandbox] paused: {exc}")
+            self._last_error = str(exc)
+            return False
+        if self.recorder is not None:
+            self.recorder.capture()
+        s = self._stats
+        s.steps += 1
+        s.sim_seconds += self.world.dt
+        now = time.perf_counter()
+        if now - s.window_start >= self.STATS_WINDOW_S:
+            wall = now - s.window_start
+            s.steps_per_second = s.steps / wall
+            s.realtime_factor = s.sim_seconds / wall
+            s.timing_ms = self.world.timing_ms()
+            self.world.profiler.reset()
+            s.window_start, s.steps, s.sim_seconds = now, 0, 0.0
+        return True
+
+    def _publish(self, new_frame: bool = False) -> None:
+        w = self.world
+        st = w.state()
+        m = w.metrics()
+        if new_frame:
+            self._history["step"].append(float(w.step_count))
+            self._history["kinetic_energy"].append(max(m["kinetic_energy"], 1e-12))  # log-scale plot
+            self._history["residual_rms"].append(max(m["residual_rms"], 1e-12))
+        contacts = None
+        if self.draw_contacts:
+            c = w.contacts()
+            contacts = {"point": c["point"].astype(np.float32), "normal": c["normal"].astype(np.float32)}
+        snap = Snapshot(
+            world_id=self._world_id,
+            generation=self._generation,
+            step=w.step_count,
+            positions=st["position"].astype(np.float32),
+            orientations=st["orientation"].astype(np.float32),
+            speeds=np.linalg.norm(st["linear_velocity"], axis=1).astype(np.float32),
+            bodies=w.body_specs if self._latest is None or self._latest.generation != self._generation
+            else self._latest.bodies,
+            scene=w.scene,
+            metrics=m,
+            history={k: np.asarray(v, dtype=np.float64) for k, v in self._history.items()},
+            timing_ms=dict(self._stats.timing_ms),
+            steps_per_second=self._stats.steps_per_second,
+            realtime_factor=self._stats.realtime_factor,
+            solver=w.solver,
+            iterations=w.iterations,
+            dt=w.dt,
+            substeps=w.substeps,
+            effects=w.effects,
+            gravity_on=bool(np.any(w.gravity != 0.0)),
+            playing=self.playing,
+            recording=self.recorder is not None,
+            contacts=contacts,
+        )
+        with self._latest_lock:
+            self._latest = snap
