@@ -67,3 +67,27 @@ def test_bad_recordings_get_clear_errors(tmp_path):
         load(bad)
     with pytest.raises(SandboxError, match="cannot read"):
         load(tmp_path / "missing.sbrec")
+
+
+def test_recording_started_mid_run_replays_through_the_logged_edits(tmp_path):
+    """The web sandbox's Record button: frames start late, edits happen before and during."""
+    from sandbox.scene.spec import EventSpec
+
+    scene = Scene.load(SCENE_PATH)
+    world = World(scene, solver="mass-splitting", iterations=8, arch="cpu")
+    world.step(20)
+    world.apply_event(EventSpec(time=0.0, kind="solver", solver="pgs", iterations=6))
+    world.apply_event(EventSpec(time=0.0, kind="gravity", gravity=np.array([0.0, 1.0, -9.81])))
+    world.step(5)
+    rec = Recorder(world, SCENE_PATH)
+    world.apply_event(EventSpec(time=0.0, kind="effects", effects=("restitution",)))
+    world.apply_event(EventSpec(time=0.0, kind="timestep", dt=1.0 / 120.0, substeps=2))
+    for _ in range(15):
+        world.step(1)
+        rec.capture()
+    path = tmp_path / "mid.sbrec"
+    rec.save(path)
+    header, frames = load(path)
+    assert header["start_step"] == 25 and header["start_events"] == 2 and header["solver"] == "mass-splitting"
+    result = replay(path)
+    assert result["first_departure"] is None and result["max_difference"] == 0.0

@@ -162,7 +162,7 @@ def test_events_parse_every_kind_and_sort_stably():
 
 
 def test_event_kinds_are_the_documented_ones():
-    assert EVENT_KINDS == ("drop", "set_velocity", "impulse", "remove", "solver", "iterations")
+    assert EVENT_KINDS == ("drop", "set_velocity", "impulse", "remove", "solver", "iterations", "gravity", "effects")
     assert {"wall", "rain"} <= set(GENERATOR_KINDS)
 
 
@@ -247,7 +247,13 @@ BAD_EVENTS = [
     ("inf-time", [{"time": math.inf, "kind": "iterations", "iterations": 5}], {}, "event[0].time", "finite"),
     ("missing-time", [{"kind": "iterations", "iterations": 5}], {}, "event[0].time", "missing required key 'time'"),
     ("unknown-kind", [{"time": 1.0, "kind": "explode"}], {}, "event[0].kind",
-     "unknown event kind 'explode'; expected one of: drop, set_velocity, impulse, remove, solver, iterations"),
+     "unknown event kind 'explode'; expected one of: drop, set_velocity, impulse, remove, solver, iterations, "
+     "gravity, effects"),
+    ("nan-gravity", [{"time": 1.0, "kind": "gravity", "gravity": [0.0, math.nan, -9.81]}], {}, "event[0].gravity",
+     "finite"),
+    ("short-gravity", [{"time": 1.0, "kind": "gravity", "gravity": [0.0, -9.81]}], {}, "event[0].gravity", "3"),
+    ("unknown-effect", [{"time": 1.0, "kind": "effects", "effects": ["friction", "sleeping"]}], {},
+     "event[0].effects[1]", "sleeping"),
     ("missing-kind", [{"time": 1.0}], {}, "event[0].kind", "missing required key 'kind'"),
     ("unknown-key", [{"time": 1.0, "kind": "remove", "bodies": ["a"], "force": 3}], {}, "event[0].force",
      "unknown key 'force' for a 'remove' event; allowed keys: bodies, kind, time"),
@@ -564,3 +570,19 @@ def test_thin_and_hull_scenes_start_on_the_ground(name):
     lowest = min(_aabbs([b])[0][0, 2] for b in scene.bodies)
     assert lowest == pytest.approx(0.0, abs=1e-9)
     assert len(scene.bodies) == {"leaning_planks": 40, "friction_arch": 21}[name]
+
+
+def test_gravity_and_effects_events_load_and_apply():
+    from sandbox import World
+
+    scene = _load(_scene([{"time": 0.5, "kind": "gravity", "gravity": [0.0, 0.0, 0.0]},
+                          {"time": 0.5, "kind": "effects", "effects": ["restitution"]}]))
+    gravity, effects = scene.events
+    assert gravity.kind == "gravity" and np.array_equal(gravity.gravity, [0.0, 0.0, 0.0])
+    assert effects.kind == "effects" and effects.effects == ("restitution",)
+    world = World(scene, arch="cpu")
+    world.step(31)  # the events apply at step 30
+    assert not np.any(world.gravity) and world.effects == ("restitution",) and not world.friction
+    world.set_velocity([1], linear=[0.0, 0.0, 1.0])  # box b: clear of the height field
+    world.step(10)  # weightless: the box keeps rising at 1 m/s (with gravity it would be falling at 0.6)
+    assert abs(world.state()["linear_velocity"][1, 2] - 1.0) < 1e-4
