@@ -110,8 +110,10 @@ def browser():
 
 
 @pytest.fixture(scope="module")
-def server():
-    s = Server(str(SCENE), "--solver", "mass-splitting", "--iterations", "15")
+def server(tmp_path_factory):
+    recordings = tmp_path_factory.mktemp("recordings")
+    s = Server(str(SCENE), "--solver", "mass-splitting", "--iterations", "15", "--recordings", str(recordings))
+    s.recordings = recordings
     try:
         s.url = s.wait_for(r"sandbox serve: (http://\S+)", START_TIMEOUT_S).group(1)
         yield s
@@ -157,6 +159,10 @@ def test_browser_session(browser, server):
     assert len(colours) > 50, f"canvas looks blank: {len(colours)} distinct colours"
     assert 0.02 < background.mean() < 0.98 or len(colours) > 500
 
+    # Record what follows (the world has been running: the recording starts mid-run).
+    page.get_by_role("button", name="Record", exact=True).click()
+    _wait_status(page, r"recording")
+
     # Drop debris: the body count in the page rises by the count asked for.
     _choose(page, "Shapes", "boxes")
     page.get_by_role("button", name="Drop debris").click()
@@ -169,6 +175,18 @@ def test_browser_session(browser, server):
     _choose(page, "Solver", "pgs-colored")
     server.wait_for(r"\[sandbox\] solver pgs-colored \(15 iterations\)", 60)
     _wait_status(page, r"pgs-colored × 15")
+
+    # Stop and save: the file replays bit for bit, drop and solver switch included.
+    page.get_by_role("button", name="Stop & save").click()
+    page.get_by_text(re.compile(r"Saved .*frames")).wait_for(timeout=60_000)
+    (saved,) = server.recordings.glob("*.sbrec")
+    from sandbox.recording import load, replay
+
+    header, frames = load(saved)
+    kinds = [e[1]["kind"] for e in header["events"]]
+    assert header["start_step"] > 0 and "drop" in kinds and "solver" in kinds and len(frames) > 1
+    result = replay(saved, arch="cpu")
+    assert result["first_departure"] is None, result
 
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     shot = ARTIFACTS / "web_sandbox.png"
