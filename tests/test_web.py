@@ -192,6 +192,12 @@ def test_browser_session(browser, server):
     shot = ARTIFACTS / "web_sandbox.png"
     page.screenshot(path=str(shot))
     assert shot.stat().st_size > 10_000
+
+    # Contact drawing and a scene change: the world is rebuilt, the solver kept.
+    page.get_by_label("Contact points", exact=True).check()
+    server.wait_for(r"\[sandbox\] contacts", 30)
+    _choose(page, "Scene", "box_on_plane")
+    _wait_status(page, r"box_on_plane · 1 bodies · pgs-colored × 15")
     page.close()
 
 

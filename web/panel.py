@@ -12,6 +12,7 @@ import functools
 import threading
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -125,13 +126,42 @@ class ControlPanel:
 
     @_user_action
     def _on_scene(self, event) -> None:
-        from sandbox.scene.library import resolve_scene
-
         name = self.scene.value
         if name == self.sim.scene_path.stem:
             return
         self.selected = None
-        self.sim.submit(f"scene {name}", lambda s: s.load(resolve_scene(name)), on_error=self._notify(event, "Scene"))
+        threading.Thread(target=self._load_scene, args=(name, event.client), name=f"load {name}", daemon=True).start()
+
+    def _load_scene(self, name: str, client) -> None:
+        """Parse (and decompose) the scene in this worker thread; the simulation thread only
+        builds the world from it, so the old world keeps running meanwhile."""
+        from sandbox import SandboxError, Scene
+        from sandbox.scene.library import resolve_scene
+
+        note = None
+        if client is not None:
+            note = client.add_notification(f"Loading {name}", "reading the scene (mesh decompositions run once, "
+                                           "then come from the cache)…", loading=True, with_close_button=False)
+        report = self._notify(SimpleNamespace(client=client), "Scene")
+        try:
+            path = resolve_scene(name)
+            scene = Scene.load(path)
+        except SandboxError as exc:
+            if note is not None:
+                note.remove()
+            report(str(exc))
+            return
+
+        def done(_) -> None:
+            if note is not None:
+                note.title, note.body, note.loading = f"{name} loaded", f"{len(scene.bodies)} bodies", False
+                note.with_close_button, note.auto_close_seconds = True, 3.0
+
+        def failed(message: str) -> None:
+            if note is not None:
+                note.remove()
+            report(message)
+        self.sim.submit(f"scene {name}", lambda s: s.load(scene, path), on_error=failed, on_done=done)
 
     @_user_action
     def _on_world_button(self, event) -> None:

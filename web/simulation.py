@@ -125,25 +125,26 @@ class Simulation:
             return self._latest
 
     # ------------------------------------------------------------------ commands (simulation thread)
-    def load(self, scene_path: Path | None = None) -> None:
-        """(Re)build the world from a scene file: scene change and reset."""
+    def load(self, scene: Scene | None = None, scene_path: Path | None = None) -> None:
+        """(Re)build the world: from ``scene`` (parsed off this thread: a mesh scene's first load
+        runs CoACD, which must not stall the running world), or the current scene (reset).
+        A failure leaves the old world running."""
         from sandbox import World
 
-        if scene_path is not None:
-            scene = Scene.load(scene_path)  # a broken file raises here and the old world stays
-            self.scene_path = Path(scene_path)
-        else:
-            scene = Scene.load(self.scene_path)
+        if scene is None:
+            scene = self.world.scene if self.world is not None else Scene.load(self.scene_path)
         old = self.world
         solver = self.world.solver if self.world is not None else self.solver
         iterations = self.world.iterations if self.world is not None else self.iterations
         options = dict(self.world.solver_options) if self.world is not None else {}
-        self.stop_recording()
         world = World(scene, solver=solver, iterations=iterations, arch=self.arch, profile=True,
                       **{k: v for k, v in options.items() if v is not None})
+        self.stop_recording()
         if old is not None:
             old.close()
         self.world = world
+        if scene_path is not None:
+            self.scene_path = Path(scene_path)
         self.gravity = np.array(world.gravity, dtype=np.float64)
         self._world_id += 1
         self._generation += 1
