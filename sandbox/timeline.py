@@ -25,5 +25,8 @@ def apply_event(world, event) -> None:
         world.set_solver(event.solver, iterations=event.iterations, **event.options)
     elif kind == "iterations":
         world.set_solver(world.solver, iterations=event.iterations, **world.solver_options)
+    elif kind == "fracture":
+        world.fracture(event.bodies, pieces=event.pieces, seed=event.seed, impulse=event.outward_impulse or 0.0,
+                       impact=event.cause == "impact")
     else:
         raise SandboxError(f"unknown event kind {kind!r}")
