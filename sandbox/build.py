@@ -105,7 +105,10 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
     for bi, body in enumerate(scene.bodies):
         pos[bi] = body.position
         q = np.asarray(body.orientation, dtype=np.float64)
-        rot[bi] = q / np.linalg.norm(q)
+        norm = np.linalg.norm(q)
+        # a unit quaternion read back from the device is kept as it is, so a rebuild (add, remove,
+        # fracture) leaves the other bodies' float32 state bit for bit unchanged
+        rot[bi] = q if abs(norm - 1.0) < 1e-6 else q / norm
         if not body.static:
             inv_mass[bi] = 1.0 / body.mass
             inertia[bi] = body.inertia
