@@ -275,14 +275,14 @@ def _read_solver_change(r: Reader) -> tuple[str, int | None, dict]:
 
 
 # ---------------------------------------------------------------------------- shapes and bodies
-def _load_mesh_file(r: Reader, key: str) -> tuple[np.ndarray, np.ndarray]:
+def _load_mesh_file(r: Reader, key: str, process: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(vertices, faces) of a mesh file read with trimesh (force='mesh'), cached per load."""
     path = r.file(key)
-    cached = r.ctx.cache.get(path.resolve())
+    cached = r.ctx.cache.get((path.resolve(), process))
     if cached is not None:
         return cached
     try:
-        vertices, faces = meshes.read_mesh_file(path)
+        vertices, faces = meshes.read_mesh_file(path, process=process)
     except meshes.MeshError as exc:
         raise r.error(str(exc), key) from None
     if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0 or vertices.ndim != 2 or vertices.shape[1] != 3:
@@ -291,7 +291,7 @@ def _load_mesh_file(r: Reader, key: str) -> tuple[np.ndarray, np.ndarray]:
         raise r.error(f"mesh file {path} has NaN or inf vertex coordinates", key)
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise r.error(f"mesh file {path} has triangle indices out of range", key)
-    r.ctx.cache[path.resolve()] = (vertices, faces)
+    r.ctx.cache[(path.resolve(), process)] = (vertices, faces)
     return vertices, faces
 
 
@@ -420,7 +420,7 @@ def _read_mesh_body(r: Reader) -> tuple[list[ShapeSpec], "decompose.Decompositio
     source = r.exclusive("path", "generator")
     scale = r.scalar_or_vector("scale", 3, 1.0, positive=True)
     if source == "path":
-        vertices, faces = _load_mesh_file(r, "path")
+        vertices, faces = _load_mesh_file(r, "path", process=False)  # checked_mesh processes it
         what = f"mesh file {r.file('path')}"
     else:
         vertices, faces = _read_mesh_generator(r.table("generator"))

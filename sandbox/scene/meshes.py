@@ -8,8 +8,8 @@ CoACD has no input checks of its own (docs/apis.md section 2): an empty mesh or
 a NaN vertex aborts the interpreter, and an open mesh is voxel-remeshed into a
 thin shell of 10^5 triangles that runs for minutes. ``checked_mesh`` is
 therefore strict. It repairs only what cannot change the solid: duplicate
-vertices are merged and zero-area or duplicate triangles dropped (trimesh's
-``process``; an STL triangle soup becomes a connected mesh this way), and an
+vertices are merged and zero-area triangles dropped (trimesh's ``process``; an
+STL triangle soup becomes a connected mesh this way), and an
 inside-out mesh (negative volume) is inverted. Everything else is an error
 (``MeshError``, which the loader turns into a SceneError naming the file and
 entry): no triangles, NaN or inf, indices out of range, open edges (holes are
@@ -122,12 +122,16 @@ def generate(kind: str, params: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ---------------------------------------------------------------------------- files and checks
-def read_mesh_file(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices, faces) of a mesh file, every trimesh failure turned into a MeshError."""
+def read_mesh_file(path: Path, *, process: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) of a mesh file, every trimesh failure turned into a MeshError.
+
+    ``process=False`` keeps the file's arrays as they are: trimesh's processing silently drops
+    NaN vertices and their triangles, which would turn a damaged file into a merely open one;
+    ``checked_mesh`` processes the mesh itself after checking it."""
     try:
         import trimesh
 
-        mesh = trimesh.load(str(path), force="mesh")
+        mesh = trimesh.load(str(path), force="mesh", process=process)
         vertices = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
         faces = np.asarray(getattr(mesh, "faces", np.empty((0, 3))), dtype=np.int64)
     except Exception as exc:  # noqa: BLE001 -- any failure inside trimesh's readers is a bad file
@@ -156,7 +160,6 @@ def checked_mesh(vertices, faces, *, what: str = "mesh"):
         raise MeshError(f"{what} is degenerate: all vertices coincide")
     with np.errstate(all="ignore"):
         mesh = trimesh.Trimesh(v, f.astype(np.int64), process=True)  # merge vertices, drop degenerate faces
-        mesh.update_faces(mesh.unique_faces())
         if len(mesh.faces) == 0:
             raise MeshError(f"{what} is degenerate: every triangle has zero area")
         if not mesh.is_watertight:
