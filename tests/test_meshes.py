@@ -292,3 +292,14 @@ def test_cache_dir_follows_the_environment(monkeypatch, tmp_path):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
     assert decompose.cache_dir() == tmp_path / "xdg" / "mass-splitting-sandbox" / "coacd"
     assert os.environ.get("SANDBOX_CACHE") is None
+
+
+def test_missing_coacd_is_a_scene_error_with_the_install_hint(monkeypatch, tmp_path):
+    from importlib import metadata
+
+    def not_installed(name):
+        raise metadata.PackageNotFoundError(name)
+
+    monkeypatch.setattr(metadata, "version", not_installed)
+    monkeypatch.setenv("SANDBOX_CACHE", str(tmp_path))
+    _expect([_mesh_body()], "body[0].generator", "CoACD is not installed: pip install 'mass-splitting-sandbox[fracture]'")

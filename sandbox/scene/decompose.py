@@ -131,11 +131,22 @@ def cache_dir() -> Path:
     return Path(base) / "mass-splitting-sandbox" / "coacd"
 
 
-def cache_key(vertices: np.ndarray, faces: np.ndarray, options: DecomposeOptions) -> str:
-    import coacd
+INSTALL_HINT = "pip install 'mass-splitting-sandbox[fracture]' (coacd, shapely, manifold3d)"
 
+
+def coacd_version() -> str:
+    """The installed CoACD's version; DecompositionError when it is not installed."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("coacd")
+    except metadata.PackageNotFoundError:
+        raise DecompositionError(f"CoACD is not installed: {INSTALL_HINT}") from None
+
+
+def cache_key(vertices: np.ndarray, faces: np.ndarray, options: DecomposeOptions) -> str:
     h = hashlib.sha256()
-    meta = {"format": FORMAT_VERSION, "coacd": getattr(coacd, "__version__", "?"), **options.key_fields()}
+    meta = {"format": FORMAT_VERSION, "coacd": coacd_version(), **options.key_fields()}
     h.update(json.dumps(meta, sort_keys=True).encode())
     h.update(np.ascontiguousarray(vertices, dtype="<f8").tobytes())
     h.update(np.ascontiguousarray(faces, dtype="<i8").tobytes())
@@ -225,6 +236,11 @@ def _describe_exit(code: int, stderr: str) -> str:
 # ---------------------------------------------------------------------------- steps 3 and 4
 def _postprocess(mesh, raw: list[np.ndarray], options: DecomposeOptions) -> Decomposition:
     import trimesh
+
+    try:
+        import manifold3d  # noqa: F401  (trimesh's boolean engine, for the mass partition)
+    except ImportError:
+        raise DecompositionError(f"manifold3d is not installed: {INSTALL_HINT}") from None
 
     extent = float(np.ptp(np.asarray(mesh.vertices), axis=0).max())
     notes = []

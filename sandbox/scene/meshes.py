@@ -106,8 +106,13 @@ def bowl(radius: float = 0.5, thickness: float = 0.06, sections=(16, 6)) -> tupl
 
 
 def _extrude(outline, holes, height: float, offset) -> tuple[np.ndarray, np.ndarray]:
-    import shapely
     import trimesh
+
+    try:
+        import manifold3d  # noqa: F401  (trimesh's polygon triangulation engine)
+        import shapely
+    except ImportError as exc:
+        raise MeshError(f"this generator needs {exc.name}: pip install 'mass-splitting-sandbox[fracture]'") from None
 
     m = trimesh.creation.extrude_polygon(shapely.Polygon(outline, holes), float(height))
     return np.asarray(m.vertices, dtype=np.float64) + np.asarray(offset, dtype=np.float64), np.asarray(m.faces,
