@@ -387,3 +387,24 @@ def test_breakable_body_rests_then_breaks_on_impact_and_replays(make_world, scen
     world.close()
     result = replay(path)
     assert result["first_departure"] is None and result["max_difference"] == 0.0
+
+
+def test_fracture_past_the_reserve_grows_buffers_keeping_state(make_world):
+    world = make_world()
+    world.step(2)
+    world.set_velocity([BOX_I, TARGET_I], linear=[0.5, 0.0, 1.0], angular=[0.0, 1.0, 0.0])
+    caps, before = world.buf.caps, world.state()
+    p0, l0, m0 = _world_momentum(world)
+    new = world.fracture([BOX_I, TARGET_I], pieces=40, seed=5)  # 78 new bodies and hulls: past the reserve of 16
+    assert len(new) == 80 and world.body_count == 7 + 78
+    assert world.buf.caps.bodies > caps.bodies and world.buf.caps.polys > caps.polys
+    after = world.state()
+    for i in (TORUS_I, L_BLOCK_I, BALL_I, CHIP_I):
+        for key in after:
+            assert np.array_equal(after[key][i], before[key][i]), (i, key)
+    p1, l1, m1 = _world_momentum(world)
+    assert abs(m1 - m0) <= WORLD_RTOL * m0
+    assert np.linalg.norm(p1 - p0) <= WORLD_RTOL * np.linalg.norm(p0)
+    assert np.linalg.norm(l1 - l0) <= WORLD_RTOL * np.linalg.norm(l0)
+    world.step(5)
+    assert np.all(np.isfinite(world.state()["position"]))
