@@ -366,7 +366,9 @@ def test_breakable_body_rests_then_breaks_on_impact_and_replays(make_world, scen
     target = world._bodies[TARGET_I]
     weight = target.mass * 9.81 * world.dt  # [N s] what the floor passes to a resting body per step
     assert world.body_count == 7  # resting: no break
-    assert world.impact_impulses()[TARGET_I] == pytest.approx(weight, rel=0.02)
+    # at rest the floor's manifold carries exactly the weight; after 0.5 s (five time constants
+    # 2 zeta / omega of the over-damped contact) the settling left is ~1e-4 (measured 7e-5)
+    assert world.impact_impulses()[TARGET_I] == pytest.approx(weight, rel=1e-3)
     assert weight < target.strength
     world.apply_event(EventSpec(time=0.5, kind="set_velocity", bodies=[BALL_I], linear_velocity=np.array([15.0, 0, 0])))
     for _ in range(30):
