@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from .bodies import Bodies
 from .broadphase import Broadphase
 from .contacts import Contacts
+from .impact import ImpactMonitor
 from .integrate import ErrorFlags
 from .metrics import MetricBuffer
 from .persistence import ContactHistory
@@ -52,6 +53,11 @@ class Capacities:
         minimum = {"planes": 8, "static_hash": 1024}
         return cls(**{k: capacity_class(v, minimum.get(k, 64)) for k, v in counts.items()})
 
+    def covering(self, other: "Capacities") -> "Capacities":
+        """The larger of the two classes, field by field (a rebuild never shrinks a world's buffers,
+        so removing bodies or fracturing does not recompile the kernels for a smaller class)."""
+        return Capacities(**{k: max(v, getattr(other, k)) for k, v in self.__dict__.items()})
+
     def grown(self, **changes) -> "Capacities":
         values = dict(self.__dict__)
         values.update({k: capacity_class(v) for k, v in changes.items()})
@@ -73,6 +79,7 @@ class BufferSet:
         self.history = ContactHistory(point_capacity, caps.shapes)
         self.blocks = BlockScratch(point_capacity, caps.bodies)
         self.coloring = Coloring(caps.pairs, caps.bodies)
+        self.impacts = ImpactMonitor(point_capacity, caps.bodies)
         self.errors = ErrorFlags()
         self.metrics = MetricBuffer()
 

@@ -24,6 +24,11 @@ from .shapes import (
 )
 
 
+RESERVE_HULL = (24, 14, 72, 36)
+"""Vertices, faces, face-loop entries and edges reserved per fracture piece: a Voronoi cell of a box
+cut by 7 bisector planes has at most 13 faces, 22 vertices and 33 edges (Euler: V - E + F = 2)."""
+
+
 @dataclass
 class HostWorld:
     """Everything a world uploads, as host arrays, plus its capacity needs."""
@@ -40,12 +45,17 @@ class HostWorld:
     n_dynamic: int
     has_restitution: bool = False
 
-    def capacities(self, pairs: int | None = None, grid_entries: int | None = None) -> Capacities:
+    def capacities(self, pairs: int | None = None, grid_entries: int | None = None, reserve_pieces: int = 0) -> Capacities:
+        """Capacity classes for this world, with room for ``reserve_pieces`` fracture pieces (each a
+        new body, shape and hull of up to RESERVE_HULL vertices / faces / loop entries / edges)."""
         sizes = PolytopePool.sizes(self.polytopes)
+        r = int(reserve_pieces)
+        hv, hf, hl, he = RESERVE_HULL
         return Capacities.for_counts(
-            bodies=len(self.body_arrays["inv_mass"]), shapes=len(self.shape_arrays["kind"]),
-            planes=len(self.plane_arrays["normal"]), polys=sizes[0], poly_verts=sizes[1], poly_faces=sizes[2],
-            poly_loops=sizes[3], poly_edges=sizes[4], static_hash=2 * self.static_entries,
+            bodies=len(self.body_arrays["inv_mass"]) + r, shapes=len(self.shape_arrays["kind"]) + r,
+            planes=len(self.plane_arrays["normal"]), polys=sizes[0] + r, poly_verts=sizes[1] + r * hv,
+            poly_faces=sizes[2] + r * hf, poly_loops=sizes[3] + r * hl, poly_edges=sizes[4] + r * he,
+            static_hash=2 * self.static_entries,
             static_entries=self.static_entries, grid_entries=grid_entries or (16 * self.n_dynamic + 1024),
             pairs=pairs or (12 * self.n_dynamic + 1024),
         )
@@ -95,7 +105,10 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
     for bi, body in enumerate(scene.bodies):
         pos[bi] = body.position
         q = np.asarray(body.orientation, dtype=np.float64)
-        rot[bi] = q / np.linalg.norm(q)
+        norm = np.linalg.norm(q)
+        # a unit quaternion read back from the device is kept as it is, so a rebuild (add, remove,
+        # fracture) leaves the other bodies' float32 state bit for bit unchanged
+        rot[bi] = q if abs(norm - 1.0) < 1e-6 else q / norm
         if not body.static:
             inv_mass[bi] = 1.0 / body.mass
             inertia[bi] = body.inertia

@@ -19,6 +19,8 @@ def cmd_run(args) -> int:
 
     path = resolve_scene(args.scene)
     scene = Scene.load(path)
+    for warning in scene.warnings:
+        print(f"warning    {warning}")
     options = {}
     if args.shuffle:
         options["shuffle"] = True
@@ -78,6 +80,8 @@ def cmd_run(args) -> int:
     if args.report:
         Path(args.report).write_text(json.dumps(report, indent=1))
         print(f"report     {args.report}")
+    for failure in world.fracture_failures:
+        print(f"fracture   {failure}")
     if recorder is not None:
         size = recorder.save(args.record)
         print(f"recording  {args.record}: {recorder.frame_count} frames, {size / 1e6:.2f} MB")

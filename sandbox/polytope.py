@@ -147,3 +147,97 @@ def triangle_polytope(a, b, c) -> Polytope:
     return Polytope(v, normals, offsets, loops, edges, edge_faces)
 
 
+
+
+# ---------------------------------------------------------------------------- clipping and overlap
+def clip_convex(points, normal, offset: float) -> np.ndarray | None:
+    """Vertices of conv(points) cut by the plane n . x = offset, keeping n . x <= offset.
+
+    Returns None when nothing of positive volume is left. The cut points are the
+    intersections of the hull's edges (triangulated, so face diagonals too) with the
+    plane; the ones that land inside a face are not extreme and drop out of the next
+    hull. Two cells cut by the same plane with opposite normals share that face
+    exactly, so a partition made this way conserves volume to rounding.
+    """
+    from scipy.spatial import ConvexHull, QhullError
+
+    pts = np.asarray(points, dtype=np.float64)
+    n = np.asarray(normal, dtype=np.float64)
+    try:
+        hull = ConvexHull(pts)
+    except (QhullError, ValueError):
+        return None
+    pts = pts[hull.vertices]
+    remap = -np.ones(hull.points.shape[0], dtype=np.int64)
+    remap[hull.vertices] = np.arange(len(hull.vertices))
+    d = pts @ n - float(offset)
+    scale = float(np.ptp(pts, axis=0).max())
+    on = np.abs(d) <= 1e-12 * max(scale, 1e-300)
+    d = np.where(on, 0.0, d)
+    if np.all(d <= 0):
+        return pts
+    if np.all(d >= 0):
+        return None
+    tri = remap[hull.simplices]
+    edges = np.unique(np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1), axis=0)
+    da, db = d[edges[:, 0]], d[edges[:, 1]]
+    cross = (da < 0) & (db > 0) | (da > 0) & (db < 0)
+    a, b = pts[edges[cross, 0]], pts[edges[cross, 1]]
+    t = (da[cross] / (da[cross] - db[cross]))[:, None]
+    out = np.vstack([pts[d <= 0], a + t * (b - a)])
+    try:
+        kept = ConvexHull(out)
+    except (QhullError, ValueError):
+        return None
+    if kept.volume <= 1e-12 * scale**3:
+        return None
+    return out[kept.vertices]
+
+
+def _axes(points) -> tuple[np.ndarray, np.ndarray]:
+    """Outward face normals and unit edge directions of conv(points) (triangulated hull)."""
+    from scipy.spatial import ConvexHull
+
+    hull = ConvexHull(np.asarray(points, dtype=np.float64))
+    tri = hull.simplices
+    edges = np.unique(np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1), axis=0)
+    e = hull.points[edges[:, 1]] - hull.points[edges[:, 0]]
+    e /= np.linalg.norm(e, axis=1, keepdims=True)
+    normals = np.unique(np.round(hull.equations[:, :3], 12), axis=0)
+    return normals, np.unique(np.round(e * np.sign(e[:, :1] + 1e-300), 12), axis=0)
+
+
+def penetration_depth(a, b) -> tuple[float, np.ndarray]:
+    """Overlap of conv(a) and conv(b) along the best separating-axis candidate.
+
+    Returns (depth [m], axis): depth > 0 is the minimum translation distance that
+    separates the two hulls (the separating-axis theorem: for convex polytopes the
+    minimum over face normals of both and cross products of edge pairs is exact),
+    depth <= 0 means they are separated (or touching) along ``axis``, which then
+    points from a to b. Face normals are tried first, so separated or touching
+    pairs never pay for the edge-edge axes.
+    """
+    pa, pb = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+
+    def best(axes):
+        ha, hb = pa @ axes.T, pb @ axes.T
+        over_ab = ha.max(axis=0) - hb.min(axis=0)  # a on the low side
+        over_ba = hb.max(axis=0) - ha.min(axis=0)
+        over = np.minimum(over_ab, over_ba)
+        k = int(np.argmin(over))
+        sign = 1.0 if over_ab[k] <= over_ba[k] else -1.0
+        return float(over[k]), sign * axes[k]
+
+    na, ea = _axes(pa)
+    nb, eb = _axes(pb)
+    depth, axis = best(np.vstack([na, nb]))
+    if depth <= 0:
+        return depth, axis
+    cross = np.cross(ea[:, None, :], eb[None, :, :]).reshape(-1, 3)
+    length = np.linalg.norm(cross, axis=1)
+    cross = cross[length > 1e-9] / length[length > 1e-9, None]
+    if len(cross):
+        d2, axis2 = best(cross)
+        if d2 < depth:
+            return d2, axis2
+    return depth, axis

@@ -165,6 +165,7 @@ def replay(path, arch: str = "cpu", on_frame=None) -> dict:
                   settings=Settings(**header["settings"]), **{k: v for k, v in header["solver_options"].items()
                                                                if v is not None})
     world._pending = []  # the recorded log already holds the scripted events
+    world.auto_fracture = False  # ... and the impact fractures
     events = [(step, _decode(e)) for step, e in header["events"]]
     # A recording started mid-run (the web sandbox's Record button) holds every event since
     # step 0: re-simulate up to its first frame, which determinism makes exact.

@@ -70,6 +70,18 @@ class Settings:
     overshoots by the number of rows coupled through a body; stacks need
     omega ~ 1/n to survive, which makes them soft and slow to converge."""
 
+    fracture_min_piece_size: float = 0.01
+    """[m] Smallest piece a Voronoi fracture may make, measured as the cube root of its
+    volume. A body that would give smaller pieces stays whole: ``World.fracture`` raises,
+    and a breakable body stops being breakable. Lower allows finer debris, which the
+    per-pair margin and slop caps (a quarter and a tenth of the smaller shape) still
+    handle, but every piece is one more body for the solver."""
+
+    max_bodies: int = 1_000_000
+    """[1] Most bodies a world may hold. Adding bodies or fracturing past it raises
+    CapacityError naming this setting. Below it, buffers grow in powers of two as bodies
+    arrive, keeping every body's state (each new size class compiles the kernels once)."""
+
     def replace(self, **changes) -> "Settings":
         known = {f.name for f in fields(self)}
         unknown = set(changes) - known

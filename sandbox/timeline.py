@@ -31,5 +31,8 @@ def apply_event(world, event) -> None:
         world.set_effects(event.effects)
     elif kind == "timestep":
         world.set_timestep(event.dt, event.substeps)
+    elif kind == "fracture":
+        world.fracture(event.bodies, pieces=event.pieces, seed=event.seed, impulse=event.outward_impulse or 0.0,
+                       impact=event.cause == "impact")
     else:
         raise SandboxError(f"unknown event kind {kind!r}")

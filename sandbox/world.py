@@ -18,15 +18,30 @@ grown and the step redone from the saved state) and the error bits at the end
 (non-finite state: the last good state is restored and a SimulationError names
 the body and the stage). ``[world] substeps`` repeats the whole step, collision
 included, with dt / substeps.
+
+Fracture (``fracture.py``) replaces a body by its pieces through the same rebuild
+as ``add_bodies`` / ``remove_bodies``: every other body keeps its state, and piece 0
+takes the broken body's index, so the indices of the other bodies never change.
+The other pieces of a scripted or API fracture are appended (before any impact
+pieces); those of an impact fracture go at the very end, so the indices a scene's
+timeline was resolved to at load time stay valid however bodies break on impact.
+Breakable bodies (``strength``) are watched by ``impact.py`` only when the scene has
+some; one that broke in a step is fractured at the start of the next step, before
+that step's scripted events, and the fracture is logged like any event, so a replay
+applies it from the log.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import taichi as ti
 
 from . import backend
 from .errors import CapacityError, SandboxError, SimulationError
+from .fracture import FractureError, check_arguments, fracture_body, piece_count
+from .scene.spec import EventSpec
 from .profile import Profiler
 from .scene.spec import Scene
 from .settings import Settings
@@ -39,7 +54,10 @@ class World:
     """A simulated scene. ``World(scene, solver=..., iterations=..., arch=...)``."""
 
     def __init__(self, scene: Scene, solver: str | None = None, iterations: int | None = None, arch: str = "auto",
-                 settings: Settings | None = None, profile: bool = False, **solver_options):
+                 settings: Settings | None = None, profile: bool = False, reserve_pieces: int = 0, **solver_options):
+        """``reserve_pieces``: room for this many fracture pieces beyond what the scene's breakable
+        bodies and fracture events need (those are reserved anyway), so that fractures neither grow
+        the buffers nor bring a new shape kind, both of which recompile the kernels once."""
         if not isinstance(scene, Scene):
             raise SandboxError(f"World needs a Scene (Scene.load(path) or Scene.from_dict(d)), got {type(scene).__name__}")
         self.arch = backend.init(arch)
@@ -63,13 +81,29 @@ class World:
         self.applied_events: list[tuple[int, object]] = []
         """(step, EventSpec) of every event applied so far, scripted or interactive: what a
         recording stores so that a replay applies exactly the same edits."""
+        self.auto_fracture = True
+        """Breakable bodies fracture when a contact impulse exceeds their strength. A replay turns
+        this off: the recorded log holds those fractures as events."""
+        self.fracture_failures: list[str] = []
+        """Impact fractures that could not happen, one sentence each (the body stayed whole and
+        stopped being breakable)."""
+        self.last_fracture: list = []
+        """``fracture.FractureResult`` of each body of the last fracture (how exact its pieces were)."""
+        self._tail = 0  # pieces of impact fractures at the end of the body list
+        self._breaking: list[int] = []  # bodies that broke in the last step, fractured before the next
+        if isinstance(reserve_pieces, bool) or not isinstance(reserve_pieces, (int, np.integer)) or reserve_pieces < 0:
+            raise SandboxError(f"reserve_pieces must be an integer >= 0, got {reserve_pieces!r}")
+        reserve = _fracture_reserve(scene) + int(reserve_pieces)
         self._host = host_world(scene, self.settings)
-        self.kinds = self._host.kinds
+        from .shapes import HULL
+
+        self.kinds = _union_kinds(self._host.kinds, (HULL,) if reserve else ())
         effects = tuple(getattr(scene, "effects", ("friction", "restitution")))
         self.friction = "friction" in effects  # compile-time: friction rows exist only if asked for
         self.restitution = "restitution" in effects
         self.body_count = len(scene.bodies)
-        self._acquire(self._host.capacities())
+        self._acquire(self._host.capacities(reserve_pieces=reserve))
+        self._update_breakable()
         opts = dict(scene.solver.options)
         opts.update(solver_options)
         self.set_solver(solver or scene.solver.name, iterations=iterations or scene.solver.iterations, **opts)
@@ -140,15 +174,108 @@ class World:
 
     def add_bodies(self, bodies: list) -> list[int]:
         """Append bodies (BodySpecs) to the world; returns their indices. Body state is kept;
-        warm-start impulses are dropped once (the contact buffer is rebuilt)."""
-        first = len(self._bodies)
-        self._rebuild(self._live_specs() + list(bodies))
-        return list(range(first, first + len(bodies)))
+        warm-start impulses are dropped once (the contact buffer is rebuilt). They go before the
+        pieces of impact fractures, if there are any (module docstring)."""
+        self._flush_breaks()
+        live = self._live_specs()
+        self._check_body_budget(len(live) + len(bodies), "adding bodies")
+        at = len(live) - self._tail
+        self._rebuild(live[:at] + list(bodies) + live[at:])
+        return list(range(at, at + len(bodies)))
 
     def remove_bodies(self, indices) -> None:
         """Remove bodies; the bodies after them move down to close the gaps."""
         drop = set(self._check_indices(indices, "remove"))
+        self._flush_breaks()
+        self._tail -= sum(1 for i in drop if i >= len(self._bodies) - self._tail)
         self._rebuild([b for i, b in enumerate(self._live_specs()) if i not in drop])
+
+    def fracture(self, bodies, pieces: int = 8, seed: int = 0, impulse: float = 0.0, *, impact: bool = False) -> list[int]:
+        """Break dynamic bodies into convex pieces (``fracture.py``); returns the pieces' indices.
+
+        A compound breaks into its shapes, a convex body into ``pieces`` Voronoi cells seeded with
+        ``seed`` (``seed + k`` for the k-th listed body). Each piece keeps the parent's velocity
+        field, plus a share of the outward ``impulse`` [N s] (a total; it conserves momentum).
+        Piece 0 takes the body's index; the others are appended, before the pieces of impact
+        fractures, or after everything with ``impact=True`` (how impact fractures are applied).
+        Every other body keeps its state. A static body, an unknown index, or a body that cannot
+        be split (too small for ``Settings.fracture_min_piece_size``) raises SandboxError and leaves
+        the world unchanged; more than ``Settings.max_bodies`` bodies raises CapacityError.
+        """
+        try:
+            check_arguments(pieces, seed, impulse)
+        except FractureError as exc:
+            raise FractureError(f"fracture: {exc}") from None
+        idx = self._check_indices(bodies, "fracture")
+        if not idx:
+            raise SandboxError("fracture: no body given")
+        if len(set(idx)) != len(idx):
+            raise SandboxError(f"fracture: a body is listed twice in {idx}")
+        for i in idx:
+            if self._bodies[i].static:
+                raise SandboxError(f"fracture: body {i}{self.body_name(i)} is static and cannot be fractured")
+        if not impact:
+            self._flush_breaks()
+        live = self._live_specs()
+        results = []
+        for k, i in enumerate(idx):
+            try:
+                results.append(fracture_body(live[i], pieces=pieces, seed=int(seed) + k,
+                                             impulse=impulse, min_piece_size=self.settings.fracture_min_piece_size))
+            except FractureError as exc:
+                raise FractureError(f"fracture: body {i}{self.body_name(i)} stays whole: {exc}") from None
+        extras = [piece for r in results for piece in r.bodies[1:]]
+        self._check_body_budget(len(live) + len(extras), f"fracturing {len(idx)} body(ies) into {len(extras) + len(idx)} pieces")
+        for i, r in zip(idx, results):
+            live[i] = r.bodies[0]
+        at = len(live) if impact else len(live) - self._tail
+        self._rebuild(live[:at] + extras + live[at:])
+        if impact:
+            self._tail += len(extras)
+        self.last_fracture = results
+        out, next_index = [], at
+        for i, r in zip(idx, results):
+            out.append(i)
+            out.extend(range(next_index, next_index + len(r.bodies) - 1))
+            next_index += len(r.bodies) - 1
+        return out
+
+    def _check_body_budget(self, count: int, what: str) -> None:
+        if count > self.settings.max_bodies:
+            raise CapacityError(f"{what} would make {count} bodies; this world holds at most "
+                                f"{self.settings.max_bodies} (Settings.max_bodies: raise it with "
+                                "World(..., settings=Settings().replace(max_bodies=...)))")
+
+    def _update_breakable(self) -> None:
+        """Strength per body (inf: not breakable); the impact monitor runs only when one is finite."""
+        self._strength = np.array([b.strength if b.breakable and not b.static else np.inf for b in self._bodies],
+                                  dtype=np.float64)
+        self._watch_impacts = bool(np.isfinite(self._strength).any())
+
+    def impact_impulses(self) -> np.ndarray:
+        """Largest total normal impulse [N s] one contact manifold passed to each body in the last
+        step (impact.py); tracked only while the world has breakable bodies (else zeros)."""
+        if not self._watch_impacts:
+            return np.zeros(self.body_count)
+        return self.buf.impacts.body_max.to_numpy()[: self.body_count].astype(np.float64)
+
+    def _flush_breaks(self) -> None:
+        """Fracture the bodies that broke in the last step, one logged event each. Runs at the start
+        of the next step, or earlier when an edit changes the body list (impact pieces never move
+        other bodies' indices, so the edit's indices stay valid)."""
+        if not self._breaking:
+            return
+        broken, self._breaking = self._breaking, []
+        for i in broken:
+            body = self._bodies[i]
+            event = EventSpec(time=self.step_count * self.dt, kind="fracture", bodies=[i], pieces=int(body.pieces),
+                              seed=int(self.step_count), outward_impulse=0.0, cause="impact")
+            try:
+                self.apply_event(event)
+            except FractureError as exc:
+                self._bodies[i] = dataclasses.replace(body, breakable=False)
+                self._update_breakable()
+                self.fracture_failures.append(f"step {self.step_count}: {exc}; it is no longer breakable")
 
     def set_velocity(self, indices, linear=None, angular=None) -> None:
         """Set the linear [m/s] and/or angular [rad/s, world] velocity of dynamic bodies."""
@@ -203,21 +330,20 @@ class World:
                 for i, b in enumerate(self._bodies)]
 
     def _rebuild(self, bodies: list) -> None:
-        import dataclasses
-
         from .build import host_world, upload
 
         self._bodies = bodies
         self._host = host_world(dataclasses.replace(self.scene, bodies=bodies), self.settings)
-        self.kinds = self._host.kinds
+        self.kinds = _union_kinds(self.kinds, self._host.kinds)  # a kind once compiled stays: no recompile back
         self.body_count = len(bodies)
         old = self.buf.caps
-        caps = self._host.capacities(pairs=old.pairs, grid_entries=old.grid_entries)
+        caps = self._host.capacities(pairs=old.pairs, grid_entries=old.grid_entries).covering(old)
         if caps == old:
             upload(self._host, self.buf, self.settings.contact_margin)
         else:
             self.close()
             self._acquire(caps)
+        self._update_breakable()
 
     # ------------------------------------------------------------------ stepping
     def step(self, n: int = 1) -> None:
@@ -226,14 +352,19 @@ class World:
         h = self.dt / self.substeps
         self._h = h
         for _ in range(int(n)):
+            self._flush_breaks()
             while self._pending and int(round(self._pending[0].time / self.dt)) <= self.step_count:
                 self.apply_event(self._pending.pop(0))
-            for _ in range(self.substeps):
-                self._substep(h)
+            watch = self._watch_impacts and self.auto_fracture
+            for s in range(self.substeps):
+                self._substep(h, watch, first=s == 0)
+            if watch:
+                peak = self.buf.impacts.body_max.to_numpy()[: self.body_count]
+                self._breaking = [int(i) for i in np.flatnonzero(peak > self._strength)]
             self.step_count += 1
             self.profiler.steps += 1
 
-    def _substep(self, h: float) -> None:
+    def _substep(self, h: float, watch: bool = False, first: bool = True) -> None:
         from .bodies import restore_good_state, save_good_state, update_world_inertia
         from .integrate import check_velocities, integrate_positions, integrate_velocities
         from .persistence import match_contacts, store_contacts
@@ -254,6 +385,12 @@ class World:
             b = self.buf
         else:
             raise CapacityError("contact buffers kept overflowing after growing; the scene is too dense")
+        if watch:
+            from .impact import clear_bodies, clear_points
+
+            if first:
+                clear_bodies(b.impacts, b.bodies)
+            clear_points(b.impacts, b.contacts)
         with p.stage("prepare"):
             bias_rate, softness = soft_contact_coefficients(h_sub, s.contact_hertz, s.contact_damping_ratio)
             prepare_rows(b.rows, b.contacts, b.bodies, 1.0 / h_sub, bias_rate, softness, s.max_push_speed,
@@ -275,6 +412,14 @@ class World:
             with p.stage("relax"):
                 for _ in range(s.sweeps):
                     self._sweep(RELAX)
+            if watch:
+                from .impact import accumulate_points
+
+                accumulate_points(b.impacts, b.contacts, b.rows)
+        if watch:
+            from .impact import reduce_manifolds
+
+            reduce_manifolds(b.impacts, b.contacts)
         with p.stage("relax"):
             if self.restitution and self._host.has_restitution:
                 self._sweep(RESTITUTION)
@@ -441,6 +586,21 @@ class World:
 
     def timing_ms(self) -> dict[str, float]:
         return self.profiler.mean_ms()
+
+
+def _union_kinds(a, b) -> tuple:
+    return tuple(sorted(set(a) | set(b)))
+
+
+def _fracture_reserve(scene: Scene) -> int:
+    """Pieces the scene may create: every breakable body's, and every fracture event's."""
+    bodies = scene.bodies
+    total = sum(piece_count(b, b.pieces) for b in bodies if b.breakable and not b.static)
+    for event in scene.events:
+        if event.kind == "fracture":
+            total += sum(piece_count(bodies[i], event.pieces) if i < len(bodies) else event.pieces
+                         for i in event.bodies)
+    return total
 
 
 def _finite_vector(value, what: str) -> np.ndarray:

@@ -39,3 +39,17 @@ def scene_dict(bodies, statics=(plane(),), gravity=(0.0, 0.0, -9.81), dt=1.0 / 6
 def pytest_addoption(parser):
     parser.addoption("--stress", action="store_true", default=False,
                      help="run the whole stability matrix (every solver, 4 and 15 iterations), not the CI subset")
+
+
+@pytest.fixture(scope="session")
+def coacd_cache(tmp_path_factory):
+    """A CoACD cache directory shared by the tests of one session (never the user's cache):
+    every mesh is decomposed once per session, and cache hits are measured against it."""
+    path = tmp_path_factory.mktemp("sandbox-cache")
+    before = os.environ.get("SANDBOX_CACHE")
+    os.environ["SANDBOX_CACHE"] = str(path)
+    yield path
+    if before is None:
+        os.environ.pop("SANDBOX_CACHE", None)
+    else:
+        os.environ["SANDBOX_CACHE"] = before

@@ -162,7 +162,8 @@ def test_events_parse_every_kind_and_sort_stably():
 
 
 def test_event_kinds_are_the_documented_ones():
-    assert EVENT_KINDS == ("drop", "set_velocity", "impulse", "remove", "solver", "iterations", "gravity", "effects")
+    assert EVENT_KINDS == ("drop", "set_velocity", "impulse", "remove", "solver", "iterations", "gravity", "effects",
+                           "fracture")
     assert {"wall", "rain"} <= set(GENERATOR_KINDS)
 
 
@@ -248,7 +249,7 @@ BAD_EVENTS = [
     ("missing-time", [{"kind": "iterations", "iterations": 5}], {}, "event[0].time", "missing required key 'time'"),
     ("unknown-kind", [{"time": 1.0, "kind": "explode"}], {}, "event[0].kind",
      "unknown event kind 'explode'; expected one of: drop, set_velocity, impulse, remove, solver, iterations, "
-     "gravity, effects"),
+     "gravity, effects, fracture"),
     ("nan-gravity", [{"time": 1.0, "kind": "gravity", "gravity": [0.0, math.nan, -9.81]}], {}, "event[0].gravity",
      "finite"),
     ("short-gravity", [{"time": 1.0, "kind": "gravity", "gravity": [0.0, -9.81]}], {}, "event[0].gravity", "3"),

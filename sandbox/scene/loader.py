@@ -16,6 +16,13 @@ expansion of each ``[[generate]]`` entry in order, then the convex bodies of
 convex bodies match the anchors' ``scenes.json`` listing). Timeline ``drop``
 events append their bodies after these when they apply (``timeline.py``).
 
+Non-convex bodies (``shape = "mesh"`` in ``[[body]]``): a mesh file or a generated
+mesh (``meshes.py``), checked, then decomposed into convex hulls by CoACD in a child
+process, cached on disk (``decompose.py``). The body is a compound of those hulls;
+its mass is density x the mesh's volume, its centre of mass and inertia those of
+the mesh's material (each hull carries the part of the mesh inside it, which is
+also what it weighs when the body fractures).
+
 Centre of mass: a body's ``position`` in the file is the origin of its shape
 frame (the frame its hull vertices or compound parts are written in). The
 loader computes the centre of mass c in that frame, moves every shape by -c
@@ -33,13 +40,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import SceneError
-from . import generators, terrain, timeline
+from . import decompose, generators, meshes, terrain, timeline
 from ..solvers import SOLVERS  # the registry itself (Taichi-free), so names and options cannot drift
-from .hull import HullError, hull_vertices, reduce_to_hull
-from .massprops import body_mass_properties
+from .hull import MAX_HULL_VERTICES, HullError, hull_vertices, reduce_to_hull
+from .massprops import MassProperties, combine, part_mass_properties
 from .rotations import quat_to_matrix
 from .schema import Context, Reader
-from .spec import BodySpec, MeshSpec, PlaneSpec, Scene, ShapeSpec, SolverSpec, WorldSpec
+from .spec import DEFAULT_PIECES, MAX_PIECES, BodySpec, MeshSpec, PlaneSpec, Scene, ShapeSpec, SolverSpec, WorldSpec
 
 SOLVER_NAMES = tuple(SOLVERS)
 SOLVER_OPTIONS = {name: tuple(info.defaults) for name, info in SOLVERS.items()}
@@ -51,6 +58,8 @@ EFFECTS = ("friction", "restitution")
 """Optional contact effects a scene may call for (``effects = [...]``); the engine compiles the others away."""
 PART_SHAPES = ("box", "sphere", "capsule", "hull")
 SOLID_SHAPES = PART_SHAPES + ("compound",)
+BODY_SHAPES = SOLID_SHAPES + ("mesh",)
+"""A ``[[body]]`` may be a decomposed mesh; in ``[[static]]``, ``mesh`` is a static triangle mesh."""
 STATIC_SHAPES = ("plane", "mesh") + SOLID_SHAPES
 
 DEFAULT_DENSITY = 1000.0  # [kg/m^3]
@@ -72,11 +81,14 @@ SHAPE_KEYS = {
     "capsule": ("radius", "half_height"),
     "hull": ("vertices", "path", "scale"),
     "compound": ("parts",),
+    "mesh": ("path", "generator", "scale", "decomposition"),
 }
 SHAPE_REQUIRED = {"box": ("half_extents",), "sphere": ("radius",), "capsule": ("radius", "half_height"),
-                  "hull": (), "compound": ("parts",)}
+                  "hull": (), "compound": ("parts",), "mesh": ()}
 BODY_KEYS = ("shape", "position", "orientation", "linear_velocity", "angular_velocity", "density", "mass",
-             "friction", "restitution", "name", "static")
+             "friction", "restitution", "name", "static", "breakable", "strength", "pieces")
+DECOMPOSITION_KEYS = ("threshold", "max_hulls", "seed", "max_hull_vertices", "timeout", "on_failure")
+MAX_SEED = 2**31 - 1
 STATIC_SOLID_KEYS = ("shape", "position", "orientation", "friction", "restitution", "name")
 PART_KEYS = ("shape", "position", "orientation", "density")
 PLANE_KEYS = ("shape", "normal", "offset", "friction", "restitution")
@@ -110,6 +122,7 @@ EVENT_KEYS = {  # kind -> (allowed keys, required keys)
     "iterations": (("time", "kind", "iterations"), ("time", "kind", "iterations")),
     "gravity": (("time", "kind", "gravity"), ("time", "kind", "gravity")),
     "effects": (("time", "kind", "effects"), ("time", "kind", "effects")),
+    "fracture": (("time", "kind", "bodies", "pieces", "seed", "impulse"), ("time", "kind", "bodies")),
 }
 
 
@@ -157,7 +170,9 @@ def scene_from_dict(data, source: str = "<dict>", base_dir=None) -> Scene:
     # extreme but finite inputs (1e308) may overflow in arithmetic; every derived value is checked
     # for finiteness explicitly, so numpy's warnings would only be noise
     with np.errstate(all="ignore"):
-        return _build(data, ctx)
+        scene = _build(data, ctx)
+    scene.warnings = list(ctx.warnings)
+    return scene
 
 
 def _build(data, ctx: Context) -> Scene:
@@ -263,28 +278,23 @@ def _read_solver_change(r: Reader) -> tuple[str, int | None, dict]:
 
 
 # ---------------------------------------------------------------------------- shapes and bodies
-def _load_mesh_file(r: Reader, key: str) -> tuple[np.ndarray, np.ndarray]:
+def _load_mesh_file(r: Reader, key: str, process: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(vertices, faces) of a mesh file read with trimesh (force='mesh'), cached per load."""
     path = r.file(key)
-    cached = r.ctx.cache.get(path.resolve())
+    cached = r.ctx.cache.get((path.resolve(), process))
     if cached is not None:
         return cached
     try:
-        import trimesh
-
-        mesh = trimesh.load(str(path), force="mesh")
-        vertices = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
-        faces = np.asarray(getattr(mesh, "faces", np.empty((0, 3))), dtype=np.int64)
-    except Exception as exc:  # noqa: BLE001 -- any failure inside trimesh's readers is a bad file
-        detail = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
-        raise r.error(f"cannot read mesh file {path}: {type(exc).__name__}{': ' + detail if detail else ''}", key) from None
+        vertices, faces = meshes.read_mesh_file(path, process=process)
+    except meshes.MeshError as exc:
+        raise r.error(str(exc), key) from None
     if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0 or vertices.ndim != 2 or vertices.shape[1] != 3:
         raise r.error(f"mesh file {path} contains no triangles", key)
     if not np.all(np.isfinite(vertices)):
         raise r.error(f"mesh file {path} has NaN or inf vertex coordinates", key)
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise r.error(f"mesh file {path} has triangle indices out of range", key)
-    r.ctx.cache[path.resolve()] = (vertices, faces)
+    r.ctx.cache[(path.resolve(), process)] = (vertices, faces)
     return vertices, faces
 
 
@@ -317,10 +327,11 @@ def _read_shape(r: Reader, kind: str) -> ShapeSpec:
 
 def _read_solid(r: Reader, *, static_section: bool) -> BodySpec:
     """A ``[[body]]`` entry, or a convex ``[[static]]`` entry (box/sphere/capsule/hull/compound)."""
-    kind = r.string("shape", choices=SOLID_SHAPES, what="shape")
+    kind = r.string("shape", choices=SOLID_SHAPES if static_section else BODY_SHAPES, what="shape")
     base = STATIC_SOLID_KEYS if static_section else BODY_KEYS
     r.check_keys(base + SHAPE_KEYS[kind], required=("position",) + SHAPE_REQUIRED[kind],
                  what=f"a {'static ' if static_section else ''}{kind}")
+    decomposition = None
     if kind == "compound":
         parts = r.tables("parts")
         if not parts:
@@ -334,6 +345,9 @@ def _read_solid(r: Reader, *, static_section: bool) -> BodySpec:
             shape.local_orientation = p.quaternion("orientation")
             shapes.append(shape)
             densities.append(p.real("density", None, positive=True))
+    elif kind == "mesh":
+        shapes, decomposition = _read_mesh_body(r)
+        densities = [None] * len(shapes)
     else:
         shapes, densities = [_read_shape(r, kind)], [None]
     position = r.vector("position", 3)
@@ -348,19 +362,27 @@ def _read_solid(r: Reader, *, static_section: bool) -> BodySpec:
         key = "linear_velocity" if np.any(linear_velocity) else "angular_velocity"
         raise r.error("a static body cannot move; remove the velocity or set static = false", key)
     with np.errstate(all="ignore"):
-        mp = body_mass_properties(shapes, [d if d is not None else density for d in densities])
+        if decomposition is not None:
+            parts = decomposition.parts(mass if mass is not None else density * decomposition.mesh_volume)
+        else:
+            parts = part_mass_properties(shapes, [d if d is not None else density for d in densities])
+        mp = parts[0] if len(parts) == 1 else combine(parts)
         if not (math.isfinite(mp.mass) and mp.mass > 0 and np.all(np.isfinite(mp.inertia))):
             raise r.error(f"mass properties are not finite and positive (mass {mp.mass:g} kg); check sizes and density")
-        if mass is not None:
-            mp = mp.scaled(mass / mp.mass)
-        for shape in shapes:
+        if mass is not None and decomposition is None:
+            factor = mass / mp.mass
+            mp, parts = mp.scaled(factor), [p.scaled(factor) for p in parts]
+        for shape, part in zip(shapes, parts):
             shape.local_position = shape.local_position - mp.com
+            if len(shapes) >= 2:  # each shape's share, for a fracture into the shapes (fracture.py)
+                shape.piece_mass, shape.piece_com, shape.piece_inertia = part.mass, part.com - mp.com, part.inertia
         com_world = position + quat_to_matrix(orientation) @ mp.com
         if not (np.all(np.isfinite(com_world)) and np.all(np.isfinite(mp.inertia)) and math.isfinite(mp.mass)):
             raise r.error("position or mass properties overflow to inf")
     name = r.string("name", None)
     if name is not None and not name:
         raise r.error("a name must not be empty", "name")
+    breakable, strength, pieces = _read_breakable(r, static)
     return BodySpec(
         shapes=shapes,
         position=com_world,
@@ -373,7 +395,107 @@ def _read_solid(r: Reader, *, static_section: bool) -> BodySpec:
         friction=r.real("friction", DEFAULT_FRICTION, nonnegative=True),
         restitution=r.real("restitution", DEFAULT_RESTITUTION, low=0.0, high=1.0),
         name=name,
+        breakable=breakable,
+        strength=strength,
+        pieces=pieces,
     )
+
+
+def _read_breakable(r: Reader, static: bool) -> tuple[bool, float | None, int]:
+    """``breakable``, ``strength`` [N s] (required with it) and ``pieces`` (only with it)."""
+    breakable = r.boolean("breakable", False)
+    if not breakable:
+        for key in ("strength", "pieces"):
+            if r.has(key):
+                raise r.error(f"'{key}' applies only to breakable bodies (set breakable = true)", key)
+        return False, None, DEFAULT_PIECES
+    if static:
+        raise r.error("a static body cannot be breakable", "breakable")
+    if not r.has("strength"):
+        raise r.error("a breakable body needs 'strength' [N s]: the normal impulse one contact may pass to it in "
+                      "one step before it breaks", "strength")
+    return True, r.real("strength", positive=True), r.integer("pieces", DEFAULT_PIECES, minimum=2, maximum=MAX_PIECES)
+
+
+# ---------------------------------------------------------------------------- non-convex bodies
+def _read_mesh_body(r: Reader) -> tuple[list[ShapeSpec], "decompose.Decomposition | None"]:
+    """A ``shape = "mesh"`` body: its hulls and their decomposition (None when it fell back to one hull)."""
+    source = r.exclusive("path", "generator")
+    scale = r.scalar_or_vector("scale", 3, 1.0, positive=True)
+    if source == "path":
+        vertices, faces = _load_mesh_file(r, "path", process=False)  # checked_mesh processes it
+        what = f"mesh file {r.file('path')}"
+    else:
+        vertices, faces = _read_mesh_generator(r.table("generator"))
+        what = "the generated mesh"
+    options, on_failure = _read_decomposition(r.table("decomposition", None))
+    vertices = vertices * scale
+    if not np.all(np.isfinite(vertices)):
+        raise r.error("mesh vertices overflow to inf after scale", "scale")
+    try:
+        mesh = meshes.checked_mesh(vertices, faces, what=what)
+    except meshes.MeshError as exc:
+        raise r.error(str(exc), source) from None
+    try:
+        result = decompose.decompose(mesh, options)
+    except decompose.DecompositionError as exc:
+        if on_failure == "error":
+            raise r.error(f"convex decomposition of {what} failed: {exc} (with decomposition.on_failure = \"hull\" "
+                          "the body is kept whole as its convex hull instead)", source) from None
+        try:
+            hull, _ = reduce_to_hull(mesh.vertices)
+        except HullError as hull_exc:
+            raise r.error(f"convex decomposition of {what} failed ({exc}), and so did its convex hull ({hull_exc})",
+                          source) from None
+        r.ctx.warnings.append(f"{r.entry}: convex decomposition of {what} failed ({exc}); the body is kept whole as "
+                              "the convex hull of its mesh")
+        return [ShapeSpec("hull", vertices=hull)], None
+    for note in result.notes:
+        r.ctx.warnings.append(f"{r.entry}: {note}")
+    if result.covered < 0.99:
+        why = (f"{result.repaired_pairs} overlapping hull pair(s) were cut apart" if result.repaired_pairs
+               else "CoACD's hulls miss part of it")
+        r.ctx.warnings.append(f"{r.entry}: the hulls hold {result.covered:.1%} of {what}'s volume ({why}); its "
+                              "density was scaled so that the mass is still density x the mesh's volume")
+    return [ShapeSpec("hull", vertices=h) for h in result.hulls], result
+
+
+def _read_mesh_generator(r: Reader) -> tuple[np.ndarray, np.ndarray]:
+    kind = r.string("kind", choices=meshes.GENERATORS, what="mesh generator")
+    keys = meshes.GENERATOR_KEYS[kind]
+    r.check_keys(("kind",) + tuple(keys), required=("kind",), what=f"a '{kind}' mesh generator")
+    params = {}
+    for key, default in keys.items():
+        if not r.has(key):
+            continue
+        if key == "sections":
+            params[key] = tuple(int(n) for n in r.int_vector(key, 2, minimum=3, maximum=meshes.MAX_SECTIONS))
+        elif key in ("size",):
+            params[key] = r.vector(key, 3, positive=True)
+        elif key in ("window",):
+            params[key] = r.vector(key, 2, positive=True)
+        elif key == "window_center":
+            params[key] = r.vector(key, 2)
+        else:
+            params[key] = r.real(key, positive=True)
+    try:
+        return meshes.generate(kind, params)
+    except meshes.MeshError as exc:
+        raise r.error(str(exc)) from None
+
+
+def _read_decomposition(r: Reader | None) -> tuple["decompose.DecomposeOptions", str]:
+    if r is None:
+        return decompose.DecomposeOptions(), "error"
+    r.check_keys(DECOMPOSITION_KEYS, what="decomposition")
+    options = decompose.DecomposeOptions(
+        threshold=r.real("threshold", decompose.DEFAULT_THRESHOLD, low=0.01, high=1.0),
+        max_hulls=r.integer("max_hulls", None, minimum=1, maximum=4096),
+        seed=r.integer("seed", 0, minimum=0, maximum=MAX_SEED),
+        max_hull_vertices=r.integer("max_hull_vertices", MAX_HULL_VERTICES, minimum=4, maximum=MAX_HULL_VERTICES),
+        timeout=r.real("timeout", decompose.DEFAULT_TIMEOUT, positive=True),
+    )
+    return options, r.string("on_failure", "error", choices=("error", "hull"), what="on_failure choice")
 
 
 # ---------------------------------------------------------------------------- static planes and meshes

@@ -114,17 +114,20 @@ def combine(parts: list[MassProperties]) -> MassProperties:
     return MassProperties(float(mass), com, inertia)
 
 
-def body_mass_properties(shapes: list[ShapeSpec], densities) -> MassProperties:
-    """Mass properties of shapes placed at their local poses in one body frame.
+def part_mass_properties(shapes: list[ShapeSpec], densities) -> list[MassProperties]:
+    """Mass properties of each shape placed at its local pose, in the body frame.
 
     ``densities`` is one density for all shapes or one per shape.
     """
     if np.ndim(densities) == 0:
         densities = [float(densities)] * len(shapes)
-    parts = [
-        transformed(shape_mass_properties(s, d), s.local_position, s.local_orientation)
-        for s, d in zip(shapes, densities)
-    ]
+    return [transformed(shape_mass_properties(s, d), s.local_position, s.local_orientation)
+            for s, d in zip(shapes, densities)]
+
+
+def body_mass_properties(shapes: list[ShapeSpec], densities) -> MassProperties:
+    """Mass properties of shapes placed at their local poses in one body frame (the sum of the parts)."""
+    parts = part_mass_properties(shapes, densities)
     if len(parts) == 1:
         return parts[0]
     return combine(parts)

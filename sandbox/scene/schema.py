@@ -28,6 +28,7 @@ class Context:
     source: str
     base_dir: Path
     cache: dict = field(default_factory=dict)  # loaded mesh files by resolved path
+    warnings: list = field(default_factory=list)  # repairs and fallbacks, one sentence each (Scene.warnings)
 
 
 def _kind_of(value) -> str:

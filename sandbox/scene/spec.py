@@ -19,6 +19,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
+DEFAULT_PIECES = 8
+"""Voronoi pieces of a convex body's fracture when none is given (scene key ``pieces``)."""
+MAX_PIECES = 64
+"""Most pieces one fracture of a convex body may make (each is a new body and a new hull)."""
+
+
 def _vec(x, n=3) -> np.ndarray:
     return np.asarray(x, dtype=np.float64).reshape(n)
 
@@ -32,6 +38,12 @@ class ShapeSpec:
     vertices: np.ndarray | None = None  # hull (V, 3) in the shape frame [m]
     local_position: np.ndarray = field(default_factory=lambda: np.zeros(3))
     local_orientation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    # this shape's share of its body's mass, set by the loader for bodies of two or more shapes,
+    # used when the body fractures into its shapes (fracture.py): for a decomposed mesh it is the
+    # mesh's material inside this hull, which differs from the hull's own volume
+    piece_mass: float | None = None  # [kg]
+    piece_com: np.ndarray | None = None  # (3,) body frame [m]
+    piece_inertia: np.ndarray | None = None  # (3, 3) body frame, about piece_com [kg m^2]
 
 
 @dataclass
@@ -47,6 +59,9 @@ class BodySpec:
     friction: float = 0.5
     restitution: float = 0.0
     name: str | None = None
+    breakable: bool = False  # fractures when a contact manifold's normal impulse in one step exceeds strength
+    strength: float | None = None  # [N s], breakable bodies only
+    pieces: int = DEFAULT_PIECES  # Voronoi pieces when a breakable convex body breaks
 
 
 @dataclass
@@ -77,7 +92,7 @@ class EventSpec:
 
     time: float  # [s] >= 0, and <= the scene's duration when it has one
     kind: str  # "drop" | "set_velocity" | "impulse" | "remove" | "solver" | "iterations" | "gravity" | "effects"
-    #            | "timestep" (interactive only: the web sandbox's dt / substeps controls)
+    #            | "fracture" | "timestep" (interactive only: the web sandbox's dt / substeps controls)
     new_bodies: list = field(default_factory=list)  # drop: BodySpecs (generated, seeded)
     bodies: list = field(default_factory=list)  # set_velocity / impulse / remove: body indices
     linear_velocity: np.ndarray | None = None  # set_velocity [m/s]; None keeps it
@@ -91,6 +106,10 @@ class EventSpec:
     effects: tuple | None = None  # effects: the contact effects now on (a subset of loader.EFFECTS)
     dt: float | None = None  # timestep: the new step [s]
     substeps: int | None = None  # timestep: the new number of substeps
+    pieces: int | None = None  # fracture: Voronoi pieces of a convex body
+    seed: int | None = None  # fracture: seed of the Voronoi sites (the k-th listed body uses seed + k)
+    outward_impulse: float | None = None  # fracture: [N s] total impulse pushing the pieces apart
+    cause: str = "script"  # "script" (scene or API), or "impact" (a breakable body broke; World.step logs it)
 
 
 @dataclass
@@ -120,6 +139,7 @@ class Scene:
     events: list[EventSpec] = field(default_factory=list)  # sorted by time, stable
     effects: tuple = ("friction", "restitution")  # what the scene calls for; others compile away
     description: str = ""
+    warnings: list = field(default_factory=list)  # what the loader repaired or fell back on, one sentence each
 
     @classmethod
     def load(cls, path) -> "Scene":

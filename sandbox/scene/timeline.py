@@ -10,7 +10,11 @@ Each event has a ``time`` [s] and a ``kind``:
 * ``solver``: switch to another solver (with the ``[solver]`` table's validation and options);
 * ``iterations``: change the solver's iteration count;
 * ``gravity``: a new gravity vector (``gravity = [0, 0, 0]`` switches it off);
-* ``effects``: the contact effects now on (``effects = ["friction"]``: restitution off).
+* ``effects``: the contact effects now on (``effects = ["friction"]``: restitution off);
+* ``fracture``: bodies break into convex pieces (``fracture.py``): a compound into its
+  shapes, a convex body into ``pieces`` Voronoi cells (seed ``seed`` + k for the k-th
+  listed body), pushed apart by a total outward ``impulse`` [N s]. Piece 0 takes the
+  body's place in the body list, the other pieces are appended in listed order.
 
 The engine also applies ``timestep`` events (new dt and substeps), which only the web
 sandbox issues: a scene file's event times are converted to steps with the scene's dt.
@@ -19,7 +23,7 @@ Events are sorted by time, stably (two events at the same time keep their file
 order). Body references (``bodies = [...]``) are names or integer indices into
 the body list *as it is when the event applies*: the scene's bodies in
 ``Scene.bodies`` order, then each drop's bodies appended in timeline order,
-removals closing the gaps. To check them, the loader replays the timeline here:
+removals closing the gaps, each fracture's extra pieces appended. To check them, the loader replays the timeline here:
 it tracks which bodies exist at each event, resolves every name to its index at
 that moment and rejects references to bodies that do not exist yet, no longer
 exist, are listed twice, or are static where the event would push them.
@@ -36,9 +40,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .schema import Reader
-from .spec import BodySpec, EventSpec
+from .spec import DEFAULT_PIECES, MAX_PIECES, BodySpec, EventSpec, ShapeSpec
 
-EVENT_KINDS = ("drop", "set_velocity", "impulse", "remove", "solver", "iterations", "gravity", "effects")
+EVENT_KINDS = ("drop", "set_velocity", "impulse", "remove", "solver", "iterations", "gravity", "effects",
+               "fracture")
 PUSHING_KINDS = ("set_velocity", "impulse")
 """Events that move bodies and therefore cannot target static ones."""
 MAX_ITERATIONS = 1_000_000
@@ -78,7 +83,7 @@ def read_events(readers: list[Reader], *, duration, bodies: list[BodySpec], mesh
                 claim_name(body.name, r, "name")
                 if body.name is not None:
                     drops_by_name[body.name] = item
-        elif kind in ("set_velocity", "impulse", "remove"):
+        elif kind in ("set_velocity", "impulse", "remove", "fracture"):
             item.refs = _read_references(r)
             if kind == "set_velocity":
                 ev.linear_velocity = r.vector("linear_velocity", 3, None)
@@ -89,6 +94,10 @@ def read_events(readers: list[Reader], *, duration, bodies: list[BodySpec], mesh
             elif kind == "impulse":
                 ev.impulse = r.vector("impulse", 3)
                 ev.point = r.vector("point", 3, None)
+            elif kind == "fracture":
+                ev.pieces = r.integer("pieces", DEFAULT_PIECES, minimum=2, maximum=MAX_PIECES)
+                ev.seed = r.integer("seed", 0, minimum=0, maximum=2**31 - 1)
+                ev.outward_impulse = r.real("impulse", 0.0, nonnegative=True)
         elif kind == "solver":
             ev.solver, ev.iterations, ev.options = read_solver(r)
         elif kind == "gravity":
@@ -155,8 +164,22 @@ def _replay(events: list[_Parsed], bodies: list[BodySpec], mesh_names: set, drop
             if ev.kind in PUSHING_KINDS and every[gid].static:
                 raise r.error(f"{label} is static: static bodies cannot be pushed, so {_article(ev.kind)} "
                               f"{ev.kind} event cannot target it (make the body dynamic, or remove it instead)", key)
+            if ev.kind == "fracture" and every[gid].static:
+                raise r.error(f"{label} is static: static bodies cannot be fractured (make the body dynamic)", key)
             resolved.append(index_of[gid])
         ev.bodies = resolved
+        if ev.kind == "fracture":
+            for gid in seen:  # listed order: piece 0 takes the body's slot, the others are appended
+                removed[gid] = item
+                body = every[gid]
+                count = len(body.shapes) if len(body.shapes) >= 2 else ev.pieces
+                pieces = [_piece_placeholder() for _ in range(count)]
+                live[live.index(gid)] = len(every)
+                every.append(pieces[0])
+                for piece in pieces[1:]:
+                    live.append(len(every))
+                    every.append(piece)
+            index_of = None
         if ev.kind == "remove":
             gone = set(seen)
             for gid in gone:
@@ -177,7 +200,8 @@ def _resolve(ref, key, ev: EventSpec, r: Reader, live, by_name, removed, mesh_na
         gid = by_name[ref]
         if gid in removed:
             gone = removed[gid]
-            raise r.error(f"body {ref!r} does not exist {at}: {gone.reader.entry} removed it at "
+            verb = "fractured" if gone.event.kind == "fracture" else "removed"
+            raise r.error(f"body {ref!r} does not exist {at}: {gone.reader.entry} {verb} it at "
                           f"t = {gone.event.time:g} s", key)
         return gid
     if ref in drops_by_name:
@@ -188,6 +212,11 @@ def _resolve(ref, key, ev: EventSpec, r: Reader, live, by_name, removed, mesh_na
         raise r.error(f"{ref!r} is a static mesh, not a body; events act on bodies only", key)
     raise r.error(f"no body named {ref!r} (names come from [[body]], [[generate]] and [[static]] entries and "
                   "from drop events' name prefixes: <prefix>_0, <prefix>_1, ...)", key)
+
+
+def _piece_placeholder() -> BodySpec:
+    """A fracture piece as the replay sees it: one dynamic convex shape, no name."""
+    return BodySpec(shapes=[ShapeSpec("hull")], position=np.zeros(3))
 
 
 def _label(ref, gid: int, every: list[BodySpec]) -> str:
