@@ -11,12 +11,16 @@ The step, stage by stage (names = profile keys = report keys):
    finite guard), ``relax`` (one rigid sweep without position bias)
 5. ``relax``        restitution pass, impulses stored for the next step
 
-Python only orchestrates: the cost of a step is a fixed number of kernel
-launches per substep (one per colour per sweep for ``pgs-colored``), plus two
-small reads: buffer counters after the narrowphase (a buffer that overflowed is
-grown and the step redone from the saved state) and the error bits at the end
-(non-finite state: the last good state is restored and a SimulationError names
-the body and the stage). ``[world] substeps`` repeats the whole step, collision
+Python only orchestrates. The iteration loop of step 4 is one kernel launch on
+the CPU (``Settings.iteration_launch``, solvers/substep.py: launch overhead,
+not arithmetic, bounds small scenes) or one launch per substep on CUDA; with
+the profiler on it runs stage by stage, a launch per phase, so that each stage
+has its timer (the unfused path; the iteration loop is then ``iterate`` plus the
+per-phase stages). Besides the launches a step makes two small reads: buffer
+counters after the narrowphase (a buffer that overflowed is grown and the step
+redone from the saved state) and the error bits at the end (non-finite state:
+the last good state is restored and a SimulationError names the body and the
+stage). ``[world] substeps`` repeats the whole step, collision
 included, with dt / substeps.
 """
 
@@ -204,6 +208,7 @@ class World:
         from .bodies import restore_good_state, save_good_state, update_world_inertia
         from .integrate import check_velocities, integrate_positions, integrate_velocities
         from .persistence import match_contacts, store_contacts
+        from .solvers import substep
         from .solvers.rows import BIASED, RELAX, RESTITUTION, prepare_rows, soft_contact_coefficients
 
         b, s, p = self.buf, self.settings, self.profiler
@@ -227,21 +232,34 @@ class World:
                          s.restitution_threshold)
             match_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, s.match_distance, s.warm_start / k)
             self._prepare_schedule()
-        for _ in range(k):
-            with p.stage("integrate_velocities"):
-                integrate_velocities(b.bodies, gravity, h_sub)
+        launch = self._iteration_launch()
+        if launch == "one":
+            kind, blk, rows, c, bodies = self._schedule()
             with p.stage("iterate"):
-                if s.warm_start > 0.0:
-                    self._warm_start()
-                for _ in range(s.sweeps):
-                    self._sweep(BIASED)
-                    if self.record_residuals:
-                        self.residual_history.append(self._residual_rms())
-            with p.stage("integrate_positions"):
-                integrate_positions(b.bodies, h_sub, b.errors)
-            with p.stage("relax"):
-                for _ in range(s.sweeps):
-                    self._sweep(RELAX)
+                substep.iterate_in_order(blk, rows, c, bodies, b.coloring, b.errors, kind, self._visit(),
+                                         self.friction, s.warm_start > 0.0, gravity, h_sub, k, s.sweeps)
+        elif launch == "per-substep":
+            kind, blk, rows, c, bodies = self._schedule()
+            with p.stage("iterate"):
+                for _ in range(k):
+                    substep.substep_parallel(blk, rows, c, bodies, b.coloring, b.errors, kind, self._visit(),
+                                             self.friction, s.warm_start > 0.0, gravity, h_sub)
+        else:
+            for _ in range(k):
+                with p.stage("integrate_velocities"):
+                    integrate_velocities(b.bodies, gravity, h_sub)
+                with p.stage("iterate"):
+                    if s.warm_start > 0.0:
+                        self._warm_start()
+                    for _ in range(s.sweeps):
+                        self._sweep(BIASED)
+                        if self.record_residuals:
+                            self.residual_history.append(self._residual_rms())
+                with p.stage("integrate_positions"):
+                    integrate_positions(b.bodies, h_sub, b.errors)
+                with p.stage("relax"):
+                    for _ in range(s.sweeps):
+                        self._sweep(RELAX)
         with p.stage("relax"):
             if self.restitution and self._host.has_restitution:
                 self._sweep(RESTITUTION)
@@ -292,6 +310,22 @@ class World:
         self._acquire(caps)
         return True
 
+    def _iteration_launch(self) -> str:
+        """"one", "per-substep" or "per-stage" (Settings.iteration_launch, solvers/substep.py)."""
+        if self.profiler.enabled or self.record_residuals:
+            return "per-stage"  # a timer per stage, a residual read per sweep
+        launch = self.settings.iteration_launch
+        if launch == "auto":
+            launch = "one" if self.arch == "cpu" else "per-substep"
+        if launch == "per-substep" and (self.solver == "pgs-colored" or self.settings.sweeps != 1):
+            return "per-stage"  # launches per colour; a sweep count is not unrolled into the kernel
+        return launch
+
+    def _visit(self) -> int:
+        from .solvers import substep
+
+        return {"pgs": substep.PGS, "pgs-colored": substep.PGS_COLORED}.get(self.solver, substep.BLOCKS)
+
     def _schedule(self):
         from .solvers import blocks
 
@@ -310,8 +344,9 @@ class World:
             o = self.solver_options
             col = self.buf.coloring
             pgs.color_manifolds(col, c, bodies, int(o["shuffle"]), int(o["seed"]), self.step_count)
-            self._color_starts = col.color_start.to_numpy()
-            self.last_color_count = int(col.color_count[None])
+            if self._iteration_launch() != "one":  # the colour ranges drive the launches
+                self._color_starts = col.color_start.to_numpy()
+                self._color_count = int(col.color_count[None])
 
     def _warm_start(self) -> None:
         from .solvers import blocks
@@ -329,7 +364,7 @@ class World:
             pgs.pgs_serial(rows, c, bodies, 1, mode, fr)
         elif self.solver == "pgs-colored":
             col, starts, overflow = self.buf.coloring, self._color_starts, pgs.MAX_COLORS
-            for k in range(self.last_color_count):
+            for k in range(self._color_count):
                 pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]), mode, fr)
             if starts[overflow + 1] > starts[overflow]:
                 pgs.solve_overflow(rows, c, bodies, col, int(starts[overflow]), int(starts[overflow + 1]), mode, fr)
@@ -370,8 +405,13 @@ class World:
             "residual_max": float(np.sqrt(v[RES_MAX_SQ])),
         }
         if self.solver == "pgs-colored":
-            out["colors"] = int(getattr(self, "last_color_count", 0))
+            out["colors"] = self.last_color_count
         return out
+
+    @property
+    def last_color_count(self) -> int:
+        """Colours pgs-colored used in the last step (read from the device)."""
+        return int(self.buf.coloring.color_count[None]) if self.solver == "pgs-colored" else 0
 
     def _residual_rms(self) -> float:
         """RMS residual of the biased problem the sweeps are solving right now."""

@@ -132,9 +132,12 @@ def gather_slots(s: ti.template(), bodies: ti.template()):
             bodies.ang_vel[i] += dw
 
 
-@ti.kernel
-def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template()):
-    """Apply last step's matched impulses with the full masses (method.md 1.10)."""
+@ti.func
+def warm_start_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
+                      kind: ti.template()):
+    """Apply last step's matched impulses with the full masses (method.md 1.10): one loop over
+    blocks into the slots, one fixed-order gather per body. Two loops: at a kernel's top level
+    each runs in parallel; inside a serialized loop (solvers/substep.py) both run in order."""
     for k in range(s.block_count[None]):
         start, count, a, b = block_range(c, k, kind)
         dva, dwa, dvb, dwb = vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0)
@@ -151,10 +154,10 @@ def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: 
     gather_slots(s, bodies)
 
 
-@ti.kernel
-def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+@ti.func
+def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
                  mode: ti.template(), friction: ti.template()):
-    """One parallel sweep over all blocks from the same velocities, then the per-body merge."""
+    """One Jacobi sweep over all blocks from the same velocities, then the per-body merge."""
     for k in range(s.block_count[None]):
         start, count, a, b = block_range(c, k, kind)
         va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
@@ -169,3 +172,14 @@ def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
         s.slot_dv[2 * k + 1] = (vb - vb0) * s.weight[b]
         s.slot_dw[2 * k + 1] = (wb - wb0) * s.weight[b]
     gather_slots(s, bodies)
+
+
+@ti.kernel
+def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template()):
+    warm_start_blocks(s, rows, c, bodies, kind)
+
+
+@ti.kernel
+def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+                 mode: ti.template(), friction: ti.template()):
+    sweep_blocks(s, rows, c, bodies, kind, mode, friction)
