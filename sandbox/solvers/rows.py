@@ -53,6 +53,7 @@ class Rows:
         self.ra_body = ti.Vector.field(3, ti.f32, c)  # anchors in the bodies' frames at the step start
         self.rb_body = ti.Vector.field(3, ti.f32, c)
         self.approach = ti.field(ti.f32, c)  # [m/s] normal velocity before the step (restitution)
+        self.sep_now = ti.field(ti.f32, c)  # [m] separation at the last position update (normal_target)
         # per-step constants of the row update: 1/h_sub, bias rate, softness 1/c, max push, restitution threshold
         self.params = ti.field(ti.f32, 8)
         self.lam = ti.Vector.field(3, ti.f32, c)  # accumulated impulses (n, t1, t2) [N s]
@@ -110,6 +111,7 @@ def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), i
         rows.k_b[q] = vec3(_share(imb, ib, rb, n), _share(imb, ib, rb, t1), _share(imb, ib, rb, t2))
         v_rel = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
         rows.approach[q] = v_rel.dot(n)
+        rows.sep_now[q] = c.sep[q]  # the bodies have not moved since the narrowphase
 
 
 @ti.func
@@ -128,10 +130,20 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
 def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32, mode: ti.template()):
     """(target velocity b, compliance gamma) of point q's normal row: the row asks for
     n . v_rel + b + gamma lambda >= 0. Gaps are rigid speculative targets s / h; a
-    penetration gets the soft spring in BIASED mode and nothing in RELAX mode."""
+    penetration gets the soft spring in BIASED mode and nothing in RELAX mode.
+
+    The separation changes only when positions do, i.e. between a substep's biased and
+    relax sweeps: the relax sweep (the first to run after a position update) computes it
+    and keeps it in ``sep_now`` for the next substep's biased sweep (prepare_rows seeds it
+    for the first), so the two quaternion rotations are paid once per substep."""
     target = 0.0
     gamma = 0.0
-    s = current_separation(rows, c, bodies, q)
+    s = 0.0
+    if ti.static(mode == BIASED):
+        s = rows.sep_now[q]
+    else:
+        s = current_separation(rows, c, bodies, q)
+        rows.sep_now[q] = s
     if s > 0.0:
         target = s * rows.params[INV_H]
     elif ti.static(mode == BIASED):
