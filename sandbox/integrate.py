@@ -59,15 +59,15 @@ could not change w. A resting or slowly turning body needs one step, not NEWTON_
 
 
 @ti.func
-def gravity_loop(bodies: ti.template(), gravity: vec3, h: ti.f32):
-    for i in range(bodies.count[None]):
+def gravity_loop(bodies: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
+    for i in range(bodies.count[None] * active):  # active = 0: skipped, still a top-level loop
         if bodies.inv_mass[i] > 0.0:
             bodies.lin_vel[i] += gravity * h
 
 
 @ti.kernel
 def integrate_velocities(bodies: ti.template(), gravity: vec3, h: ti.f32):
-    gravity_loop(bodies, gravity, h)
+    gravity_loop(bodies, gravity, h, 1)
 
 
 @ti.func

@@ -233,24 +233,32 @@ class World:
             match_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, s.match_distance, s.warm_start / k)
             self._prepare_schedule()
         launch = self._iteration_launch()
+        warm = s.warm_start > 0.0
+        fold = substep.folds_warm_start(self._visit(), warm)
         if launch == "one":
             kind, blk, rows, c, bodies = self._schedule()
             with p.stage("iterate"):
                 substep.iterate_in_order(blk, rows, c, bodies, b.coloring, b.errors, kind, self._visit(),
-                                         self.friction, s.warm_start > 0.0, gravity, h_sub, k, s.sweeps)
+                                         self.friction, warm, gravity, h_sub, k, s.sweeps)
         elif launch == "per-substep":
             kind, blk, rows, c, bodies = self._schedule()
             with p.stage("iterate"):
-                for _ in range(k):
+                for i in range(k):
+                    first, then_warm = int(i == 0 or not fold), int(fold and i < k - 1)
                     substep.substep_parallel(blk, rows, c, bodies, b.coloring, b.errors, kind, self._visit(),
-                                             self.friction, s.warm_start > 0.0, gravity, h_sub)
+                                             self.friction, warm, gravity, h_sub, first, then_warm)
         else:
-            for _ in range(k):
-                with p.stage("integrate_velocities"):
-                    integrate_velocities(b.bodies, gravity, h_sub)
+            # stage by stage; with warm starting, gravity rides on the warm-start pass ("iterate"),
+            # and for the Jacobi family both ride on the previous substep's last relax sweep
+            for i in range(k):
+                if i == 0 or not fold:
+                    if warm:
+                        with p.stage("iterate"):
+                            self._warm_start(gravity, h_sub)
+                    else:
+                        with p.stage("integrate_velocities"):
+                            integrate_velocities(b.bodies, gravity, h_sub)
                 with p.stage("iterate"):
-                    if s.warm_start > 0.0:
-                        self._warm_start()
                     for _ in range(s.sweeps):
                         self._sweep(BIASED)
                         if self.record_residuals:
@@ -258,8 +266,8 @@ class World:
                 with p.stage("integrate_positions"):
                     integrate_positions(b.bodies, h_sub, b.errors)
                 with p.stage("relax"):
-                    for _ in range(s.sweeps):
-                        self._sweep(RELAX)
+                    for j in range(s.sweeps):
+                        self._sweep(RELAX, int(fold and i < k - 1 and j == s.sweeps - 1), gravity, h_sub)
         with p.stage("relax"):
             if self.restitution and self._host.has_restitution:
                 self._sweep(RESTITUTION)
@@ -335,11 +343,13 @@ class World:
     def _prepare_schedule(self) -> None:
         """Per-step set-up of the chosen schedule: body adjacency (all), colouring (pgs-colored)."""
         from .solvers import blocks, pgs
+        from .solvers.rows import prepare_response
 
         kind, b, rows, c, bodies = self._schedule()
         split = self.solver in ("mass-splitting", "block-mass-splitting")
         omega = self.solver_options.get("relaxation") or (1.0 if split else self.settings.jacobi_relaxation)
         blocks.build_adjacency(b, c, bodies, kind, blocks.MODE_SPLIT if split else blocks.MODE_JACOBI, float(omega))
+        prepare_response(rows, c, bodies, b.scale, not self.solver.startswith("pgs"))
         if self.solver == "pgs-colored":
             o = self.solver_options
             col = self.buf.coloring
@@ -348,14 +358,14 @@ class World:
                 self._color_starts = col.color_start.to_numpy()
                 self._color_count = int(col.color_count[None])
 
-    def _warm_start(self) -> None:
+    def _warm_start(self, gravity, h: float) -> None:
         from .solvers import blocks
 
         kind, b, rows, c, bodies = self._schedule()
-        blocks.warm_start(b, rows, c, bodies, kind)
+        blocks.warm_start(b, rows, c, bodies, kind, gravity, h)
 
-    def _sweep(self, mode: int) -> None:
-        """One pass of the chosen schedule over every contact row."""
+    def _sweep(self, mode: int, then_warm: int = 0, gravity=None, h: float = 0.0) -> None:
+        """One pass of the chosen schedule over every contact row (``then_warm``: blocks.sweep_blocks)."""
         from .solvers import blocks, pgs
 
         kind, b, rows, c, bodies = self._schedule()
@@ -369,7 +379,8 @@ class World:
             if starts[overflow + 1] > starts[overflow]:
                 pgs.solve_overflow(rows, c, bodies, col, int(starts[overflow]), int(starts[overflow + 1]), mode, fr)
         else:
-            blocks.jacobi_sweep(b, rows, c, bodies, kind, mode, fr)
+            g = gravity if gravity is not None else ti.math.vec3(0.0)
+            blocks.jacobi_sweep(b, rows, c, bodies, kind, mode, fr, then_warm, g, h)
 
     # ------------------------------------------------------------------ queries
     def body_name(self, i: int) -> str:

@@ -30,7 +30,7 @@ def solve_manifold(rows: ti.template(), c: ti.template(), bodies: ti.template(),
     va, wa = bodies.lin_vel[a], bodies.ang_vel[a]
     vb, wb = bodies.lin_vel[b], bodies.ang_vel[b]
     for q in range(c.m_start[m], c.m_start[m] + c.m_count[m]):
-        va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, 1.0, 1.0, mode, friction)
+        va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
     if bodies.inv_mass[a] > 0.0:
         bodies.lin_vel[a] = va
         bodies.ang_vel[a] = wa

@@ -41,13 +41,30 @@ PGS, PGS_COLORED, BLOCKS = 0, 1, 2
 @ti.func
 def _sweep(schedule: ti.template(), s: ti.template(), rows: ti.template(), c: ti.template(),
            bodies: ti.template(), col: ti.template(), kind: ti.template(), mode: ti.template(),
-           friction: ti.template()):
+           friction: ti.template(), then_warm: ti.i32, gravity: vec3, h: ti.f32):
     if ti.static(schedule == PGS):
         pgs_sweep(rows, c, bodies, mode, friction)
     elif ti.static(schedule == PGS_COLORED):
         colored_sweep_in_order(rows, c, bodies, col, mode, friction)
     else:
-        sweep_blocks(s, rows, c, bodies, kind, mode, friction)
+        sweep_blocks(s, rows, c, bodies, kind, mode, friction, then_warm, gravity, h)
+
+
+@ti.func
+def _start_substep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
+                   kind: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
+    """Gravity and warm start of a substep (``active`` = 0 skips both: the Jacobi family's
+    later substeps get them from the previous relax sweep, blocks.sweep_blocks)."""
+    if ti.static(warm):
+        warm_start_blocks(s, rows, c, bodies, kind, gravity, h, active)
+    else:
+        gravity_loop(bodies, gravity, h, active)
+
+
+def folds_warm_start(schedule: int, warm: bool) -> bool:
+    """The Jacobi family carries gravity and warm start on the last relax sweep (not PGS:
+    there the velocities a later manifold sees would change)."""
+    return warm and schedule == BLOCKS
 
 
 @ti.kernel
@@ -56,27 +73,33 @@ def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bo
                      friction: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
                      sweeps: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, everything in order on one thread."""
+    fold = ti.static(folds_warm_start(schedule, warm))
     ti.loop_config(serialize=True)
-    for _it in range(iterations):
-        gravity_loop(bodies, gravity, h)
-        if ti.static(warm):
-            warm_start_blocks(s, rows, c, bodies, kind)
+    for it in range(iterations):
+        first = 1
+        if ti.static(fold):
+            first = 1 if it == 0 else 0
+        _start_substep(s, rows, c, bodies, kind, warm, gravity, h, first)
         for _sb in range(sweeps):
-            _sweep(schedule, s, rows, c, bodies, col, kind, BIASED, friction)
+            _sweep(schedule, s, rows, c, bodies, col, kind, BIASED, friction, 0, gravity, h)
         positions_loop(bodies, h, err)
-        for _sr in range(sweeps):
-            _sweep(schedule, s, rows, c, bodies, col, kind, RELAX, friction)
+        for sr in range(sweeps):
+            then_warm = 0
+            if ti.static(fold):
+                then_warm = 1 if it < iterations - 1 and sr == sweeps - 1 else 0
+            _sweep(schedule, s, rows, c, bodies, col, kind, RELAX, friction, then_warm, gravity, h)
 
 
 @ti.kernel
 def substep_parallel(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                      col: ti.template(), err: ti.template(), kind: ti.template(), schedule: ti.template(),
-                     friction: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32):
-    """One substep of ``h`` with one sweep each, every phase's loops parallel, in one launch."""
+                     friction: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32, first: ti.i32,
+                     then_warm: ti.i32):
+    """One substep of ``h`` with one sweep each, every phase's loops parallel, in one launch.
+    ``first``: this substep does its own gravity and warm start; ``then_warm``: its relax
+    sweep does the next one's (both 1 / 0 decided by ``World`` with ``folds_warm_start``)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
-    gravity_loop(bodies, gravity, h)
-    if ti.static(warm):
-        warm_start_blocks(s, rows, c, bodies, kind)
-    _sweep(schedule, s, rows, c, bodies, col, kind, BIASED, friction)
+    _start_substep(s, rows, c, bodies, kind, warm, gravity, h, first)
+    _sweep(schedule, s, rows, c, bodies, col, kind, BIASED, friction, 0, gravity, h)
     positions_loop(bodies, h, err)
-    _sweep(schedule, s, rows, c, bodies, col, kind, RELAX, friction)
+    _sweep(schedule, s, rows, c, bodies, col, kind, RELAX, friction, then_warm, gravity, h)
