@@ -65,6 +65,15 @@ class Settings:
     step and the default; tests that need a single velocity-level problem solved
     to convergence use iterations = 1 with many sweeps."""
 
+    iteration_launch: str = "auto"
+    """How the iteration loop is launched (solvers/substep.py); the physics is the same bit
+    for bit. ``"one"``: all iterations in one kernel launch, run in order on one thread;
+    ``"per-substep"``: one launch per iteration whose phases each run in parallel (not
+    for ``pgs-colored``, which then goes stage by stage); ``"per-stage"``: one launch per
+    phase, as the profiler times them; ``"auto"``: ``"one"`` on the CPU (launch overhead,
+    not arithmetic, bounds our scenes on 2 shared cores), ``"per-substep"`` on CUDA. A
+    world with its profiler on, or recording residuals, always goes stage by stage."""
+
     jacobi_relaxation: float = 0.25
     """[1] Relaxation factor omega of projected Jacobi. Plain Jacobi (1.0)
     overshoots by the number of rows coupled through a body; stacks need

@@ -11,12 +11,16 @@ The step, stage by stage (names = profile keys = report keys):
    finite guard), ``relax`` (one rigid sweep without position bias)
 5. ``relax``        restitution pass, impulses stored for the next step
 
-Python only orchestrates: the cost of a step is a fixed number of kernel
-launches per substep (one per colour per sweep for ``pgs-colored``), plus two
-small reads: buffer counters after the narrowphase (a buffer that overflowed is
-grown and the step redone from the saved state) and the error bits at the end
-(non-finite state: the last good state is restored and a SimulationError names
-the body and the stage). ``[world] substeps`` repeats the whole step, collision
+Python only orchestrates. The iteration loop of step 4 is one kernel launch on
+the CPU (``Settings.iteration_launch``, solvers/substep.py: launch overhead,
+not arithmetic, bounds small scenes) or one launch per substep on CUDA; with
+the profiler on it runs stage by stage, a launch per phase, so that each stage
+has its timer (the unfused path; the iteration loop is then ``iterate`` plus the
+per-phase stages). Besides the launches a step makes two small reads: buffer
+counters after the narrowphase (a buffer that overflowed is grown and the step
+redone from the saved state) and the error bits at the end (non-finite state:
+the last good state is restored and a SimulationError names the body and the
+stage). ``[world] substeps`` repeats the whole step, collision
 included, with dt / substeps.
 
 Fracture (``fracture.py``) replaces a body by its pieces through the same rebuild
@@ -368,6 +372,7 @@ class World:
         from .bodies import restore_good_state, save_good_state, update_world_inertia
         from .integrate import check_velocities, integrate_positions, integrate_velocities
         from .persistence import match_contacts, store_contacts
+        from .solvers import substep
         from .solvers.rows import BIASED, RELAX, RESTITUTION, prepare_rows, soft_contact_coefficients
 
         b, s, p = self.buf, self.settings, self.profiler
@@ -397,25 +402,46 @@ class World:
                          s.restitution_threshold)
             match_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, s.match_distance, s.warm_start / k)
             self._prepare_schedule()
-        for _ in range(k):
-            with p.stage("integrate_velocities"):
-                integrate_velocities(b.bodies, gravity, h_sub)
+        launch = self._iteration_launch(watch)
+        warm = s.warm_start > 0.0
+        fold = substep.folds_warm_start(self._visit(), warm)
+        if launch == "one":
+            kind, blk, rows, c, bodies = self._schedule()
             with p.stage("iterate"):
-                if s.warm_start > 0.0:
-                    self._warm_start()
-                for _ in range(s.sweeps):
-                    self._sweep(BIASED)
-                    if self.record_residuals:
-                        self.residual_history.append(self._residual_rms())
-            with p.stage("integrate_positions"):
-                integrate_positions(b.bodies, h_sub, b.errors)
-            with p.stage("relax"):
-                for _ in range(s.sweeps):
-                    self._sweep(RELAX)
-            if watch:
-                from .impact import accumulate_points
+                substep.iterate_in_order(blk, rows, c, bodies, b.coloring, b.errors, kind, self._visit(),
+                                         self.friction, warm, gravity, h_sub, k, s.sweeps)
+        elif launch == "per-substep":
+            kind, blk, rows, c, bodies = self._schedule()
+            with p.stage("iterate"):
+                for i in range(k):
+                    warm_here, then_warm = int(i == 0 or not fold), int(fold and i < k - 1)
+                    substep.substep_parallel(blk, rows, c, bodies, b.coloring, b.errors, kind, self._visit(),
+                                             self.friction, warm, gravity, h_sub, warm_here, then_warm)
+        else:
+            # stage by stage; with warm starting, gravity rides on the warm-start pass ("iterate"),
+            # and for the Jacobi family both ride on the previous substep's last relax sweep
+            for i in range(k):
+                if i == 0 or not fold:
+                    if warm:
+                        with p.stage("iterate"):
+                            self._warm_start(gravity, h_sub)
+                    else:
+                        with p.stage("integrate_velocities"):
+                            integrate_velocities(b.bodies, gravity, h_sub)
+                with p.stage("iterate"):
+                    for _ in range(s.sweeps):
+                        self._sweep(BIASED)
+                        if self.record_residuals:
+                            self.residual_history.append(self._residual_rms())
+                with p.stage("integrate_positions"):
+                    integrate_positions(b.bodies, h_sub, b.errors)
+                with p.stage("relax"):
+                    for j in range(s.sweeps):
+                        self._sweep(RELAX, int(fold and i < k - 1 and j == s.sweeps - 1), gravity, h_sub)
+                if watch:
+                    from .impact import accumulate_points
 
-                accumulate_points(b.impacts, b.contacts, b.rows)
+                    accumulate_points(b.impacts, b.contacts, b.rows)
         if watch:
             from .impact import reduce_manifolds
 
@@ -470,6 +496,23 @@ class World:
         self._acquire(caps)
         return True
 
+    def _iteration_launch(self, watch_impacts: bool = False) -> str:
+        """"one", "per-substep" or "per-stage" (Settings.iteration_launch, solvers/substep.py).
+        All three give bit-identical results."""
+        if self.profiler.enabled or self.record_residuals or watch_impacts:
+            return "per-stage"  # a timer per stage, a residual read per sweep, impacts summed per substep
+        launch = self.settings.iteration_launch
+        if launch == "auto":
+            launch = "one" if self.arch == "cpu" else "per-substep"
+        if launch == "per-substep" and (self.solver == "pgs-colored" or self.settings.sweeps != 1):
+            return "per-stage"  # launches per colour; a sweep count is not unrolled into the kernel
+        return launch
+
+    def _visit(self) -> int:
+        from .solvers import substep
+
+        return {"pgs": substep.PGS, "pgs-colored": substep.PGS_COLORED}.get(self.solver, substep.BLOCKS)
+
     def _schedule(self):
         from .solvers import blocks
 
@@ -479,26 +522,29 @@ class World:
     def _prepare_schedule(self) -> None:
         """Per-step set-up of the chosen schedule: body adjacency (all), colouring (pgs-colored)."""
         from .solvers import blocks, pgs
+        from .solvers.rows import prepare_response
 
         kind, b, rows, c, bodies = self._schedule()
         split = self.solver in ("mass-splitting", "block-mass-splitting")
         omega = self.solver_options.get("relaxation") or (1.0 if split else self.settings.jacobi_relaxation)
         blocks.build_adjacency(b, c, bodies, kind, blocks.MODE_SPLIT if split else blocks.MODE_JACOBI, float(omega))
+        prepare_response(rows, c, bodies, b.scale, not self.solver.startswith("pgs"))
         if self.solver == "pgs-colored":
             o = self.solver_options
             col = self.buf.coloring
             pgs.color_manifolds(col, c, bodies, int(o["shuffle"]), int(o["seed"]), self.step_count)
-            self._color_starts = col.color_start.to_numpy()
-            self.last_color_count = int(col.color_count[None])
+            if self._iteration_launch() != "one":  # the colour ranges drive the launches
+                self._color_starts = col.color_start.to_numpy()
+                self._color_count = int(col.color_count[None])
 
-    def _warm_start(self) -> None:
+    def _warm_start(self, gravity, h: float) -> None:
         from .solvers import blocks
 
         kind, b, rows, c, bodies = self._schedule()
-        blocks.warm_start(b, rows, c, bodies, kind)
+        blocks.warm_start(b, rows, c, bodies, kind, gravity, h)
 
-    def _sweep(self, mode: int) -> None:
-        """One pass of the chosen schedule over every contact row."""
+    def _sweep(self, mode: int, then_warm: int = 0, gravity=None, h: float = 0.0) -> None:
+        """One pass of the chosen schedule over every contact row (``then_warm``: blocks.sweep_blocks)."""
         from .solvers import blocks, pgs
 
         kind, b, rows, c, bodies = self._schedule()
@@ -507,12 +553,13 @@ class World:
             pgs.pgs_serial(rows, c, bodies, 1, mode, fr)
         elif self.solver == "pgs-colored":
             col, starts, overflow = self.buf.coloring, self._color_starts, pgs.MAX_COLORS
-            for k in range(self.last_color_count):
+            for k in range(self._color_count):
                 pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]), mode, fr)
             if starts[overflow + 1] > starts[overflow]:
                 pgs.solve_overflow(rows, c, bodies, col, int(starts[overflow]), int(starts[overflow + 1]), mode, fr)
         else:
-            blocks.jacobi_sweep(b, rows, c, bodies, kind, mode, fr)
+            g = gravity if gravity is not None else ti.math.vec3(0.0)
+            blocks.jacobi_sweep(b, rows, c, bodies, kind, mode, fr, then_warm, g, h)
 
     # ------------------------------------------------------------------ queries
     def body_name(self, i: int) -> str:
@@ -554,8 +601,13 @@ class World:
             "residual_max": float(np.sqrt(v[RES_MAX_SQ])),
         }
         if self.solver == "pgs-colored":
-            out["colors"] = int(getattr(self, "last_color_count", 0))
+            out["colors"] = self.last_color_count
         return out
+
+    @property
+    def last_color_count(self) -> int:
+        """Colours pgs-colored used in the last step (read from the device)."""
+        return int(self.buf.coloring.color_count[None]) if self.solver == "pgs-colored" else 0
 
     def _residual_rms(self) -> float:
         """RMS residual of the biased problem the sweeps are solving right now."""

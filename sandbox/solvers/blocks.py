@@ -21,7 +21,9 @@ Per body, ``scale`` multiplies inverse mass and inertia inside a block and
   written to the body equals the change of the accumulated lambda, so warm
   starting stays consistent. It is mass splitting with one global split factor
   1/omega instead of each body's own count n_b;
-* warm start: scale = 1, weight = 1 (plain sum of last step's impulses).
+* warm start: scale = 1, weight = 1 (plain sum of last step's impulses). After the
+  first substep the warm start rides on the previous substep's last relax sweep
+  (``sweep_blocks``, ``then_warm``): the same sums, one pass over the blocks fewer.
 """
 
 
@@ -119,8 +121,11 @@ def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), k
 
 
 @ti.func
-def gather_slots(s: ti.template(), bodies: ti.template()):
-    for i in range(bodies.count[None]):
+def gather_slots(s: ti.template(), bodies: ti.template(), dv_extra: vec3, active: ti.i32):
+    """Each dynamic body adds its slots in their fixed order, then ``dv_extra`` (gravity of
+    the next substep when a relax sweep carries its warm start, else zero). ``active`` = 0
+    runs the loop zero times (it stays a top-level, parallel loop)."""
+    for i in range(bodies.count[None] * active):
         if bodies.inv_mass[i] > 0.0:
             dv = vec3(0.0)
             dw = vec3(0.0)
@@ -128,44 +133,82 @@ def gather_slots(s: ti.template(), bodies: ti.template()):
                 slot = s.adj[e]
                 dv += s.slot_dv[slot]
                 dw += s.slot_dw[slot]
-            bodies.lin_vel[i] += dv
+            bodies.lin_vel[i] = bodies.lin_vel[i] + dv_extra + dv  # gravity first, as its own pass did
             bodies.ang_vel[i] += dw
 
 
-@ti.kernel
-def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template()):
-    """Apply last step's matched impulses with the full masses (method.md 1.10)."""
-    for k in range(s.block_count[None]):
+@ti.func
+def _warm_delta(rows: ti.template(), c: ti.template(), bodies: ti.template(), a: ti.i32, b: ti.i32,
+                start: ti.i32, count: ti.i32):
+    """Velocity changes of a block's bodies under its accumulated impulses, full masses."""
+    dva, dwa, dvb, dwb = vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0)
+    for q in range(start, start + count):
+        imp = point_impulse(rows, c, q)
+        dva -= bodies.inv_mass[a] * imp
+        dwa -= bodies.inv_inertia_world[a] @ rows.ra[q].cross(imp)
+        dvb += bodies.inv_mass[b] * imp
+        dwb += bodies.inv_inertia_world[b] @ rows.rb[q].cross(imp)
+    return dva, dwa, dvb, dwb
+
+
+@ti.func
+def warm_start_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
+                      kind: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
+    """Gravity, then last step's matched impulses with the full masses (method.md 1.10):
+    one loop over blocks into the slots, one fixed-order gather per body that adds
+    ``gravity * h`` too. Two loops: at a kernel's top level each runs in parallel; inside
+    a serialized loop (solvers/substep.py) both run in order. ``active`` = 0 skips it."""
+    for k in range(s.block_count[None] * active):
         start, count, a, b = block_range(c, k, kind)
-        dva, dwa, dvb, dwb = vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0)
-        for q in range(start, start + count):
-            imp = point_impulse(rows, c, q)
-            dva -= bodies.inv_mass[a] * imp
-            dwa -= bodies.inv_inertia_world[a] @ rows.ra[q].cross(imp)
-            dvb += bodies.inv_mass[b] * imp
-            dwb += bodies.inv_inertia_world[b] @ rows.rb[q].cross(imp)
+        dva, dwa, dvb, dwb = _warm_delta(rows, c, bodies, a, b, start, count)
         s.slot_dv[2 * k] = dva
         s.slot_dw[2 * k] = dwa
         s.slot_dv[2 * k + 1] = dvb
         s.slot_dw[2 * k + 1] = dwb
-    gather_slots(s, bodies)
+    gather_slots(s, bodies, gravity * h, active)
 
 
-@ti.kernel
-def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-                 mode: ti.template(), friction: ti.template()):
-    """One parallel sweep over all blocks from the same velocities, then the per-body merge."""
+@ti.func
+def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+                 mode: ti.template(), friction: ti.template(), then_warm: ti.i32, gravity: vec3, h: ti.f32):
+    """One Jacobi sweep over all blocks from the same velocities, then the per-body merge.
+
+    ``then_warm`` (the last relax sweep of a substep that has a successor): the block's
+    impulses are final for this substep, so its slots also carry the next substep's warm
+    start, and the gather adds the next substep's gravity. Sums in the same slots, the same
+    arithmetic as a separate gravity pass and warm-start pass, one block pass and two body
+    passes fewer per substep."""
     for k in range(s.block_count[None]):
         start, count, a, b = block_range(c, k, kind)
         va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
         vb0, wb0 = bodies.lin_vel[b], bodies.ang_vel[b]
         va, wa, vb, wb = va0, wa0, vb0, wb0
-        sa = s.scale[a]
-        sb = s.scale[b]
         for q in range(start, start + count):
-            va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, sa, sb, mode, friction)
-        s.slot_dv[2 * k] = (va - va0) * s.weight[a]
-        s.slot_dw[2 * k] = (wa - wa0) * s.weight[a]
-        s.slot_dv[2 * k + 1] = (vb - vb0) * s.weight[b]
-        s.slot_dw[2 * k + 1] = (wb - wb0) * s.weight[b]
-    gather_slots(s, bodies)
+            va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
+        dva = (va - va0) * s.weight[a]
+        dwa = (wa - wa0) * s.weight[a]
+        dvb = (vb - vb0) * s.weight[b]
+        dwb = (wb - wb0) * s.weight[b]
+        if then_warm:
+            wva, wwa, wvb, wwb = _warm_delta(rows, c, bodies, a, b, start, count)
+            dva += wva
+            dwa += wwa
+            dvb += wvb
+            dwb += wwb
+        s.slot_dv[2 * k] = dva
+        s.slot_dw[2 * k] = dwa
+        s.slot_dv[2 * k + 1] = dvb
+        s.slot_dw[2 * k + 1] = dwb
+    gather_slots(s, bodies, gravity * h * ti.cast(then_warm, ti.f32), 1)
+
+
+@ti.kernel
+def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+               gravity: vec3, h: ti.f32):
+    warm_start_blocks(s, rows, c, bodies, kind, gravity, h, 1)
+
+
+@ti.kernel
+def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+                 mode: ti.template(), friction: ti.template(), then_warm: ti.i32, gravity: vec3, h: ti.f32):
+    sweep_blocks(s, rows, c, bodies, kind, mode, friction, then_warm, gravity, h)

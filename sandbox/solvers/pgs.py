@@ -30,13 +30,22 @@ def solve_manifold(rows: ti.template(), c: ti.template(), bodies: ti.template(),
     va, wa = bodies.lin_vel[a], bodies.ang_vel[a]
     vb, wb = bodies.lin_vel[b], bodies.ang_vel[b]
     for q in range(c.m_start[m], c.m_start[m] + c.m_count[m]):
-        va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, 1.0, 1.0, mode, friction)
+        va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
     if bodies.inv_mass[a] > 0.0:
         bodies.lin_vel[a] = va
         bodies.ang_vel[a] = wa
     if bodies.inv_mass[b] > 0.0:
         bodies.lin_vel[b] = vb
         bodies.ang_vel[b] = wb
+
+
+@ti.func
+def pgs_sweep(rows: ti.template(), c: ti.template(), bodies: ti.template(), mode: ti.template(),
+              friction: ti.template()):
+    """One serial sweep over the manifolds in buffer order (serialized also at a kernel's top level)."""
+    ti.loop_config(serialize=True)
+    for m in range(c.manifold_count[None]):
+        solve_manifold(rows, c, bodies, m, mode, friction)
 
 
 @ti.kernel
@@ -155,6 +164,19 @@ def solve_overflow(rows: ti.template(), c: ti.template(), bodies: ti.template(),
                    k1: ti.i32, mode: ti.template(), friction: ti.template()):
     ti.loop_config(serialize=True)
     for idx in range(k0, k1):
+        solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
+
+
+@ti.func
+def colored_sweep_in_order(rows: ti.template(), c: ti.template(), bodies: ti.template(), col: ti.template(),
+                           mode: ti.template(), friction: ti.template()):
+    """The colours in sequence and each colour's manifolds one after another, for use inside a
+    serialized loop (solvers/substep.py). No two manifolds of a colour share a dynamic body, so
+    this gives bit for bit what the parallel launches per colour give."""
+    for k in range(col.color_count[None]):
+        for idx in range(col.color_start[k], col.color_start[k + 1]):
+            solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
+    for idx in range(col.color_start[MAX_COLORS], col.color_start[MAX_COLORS + 1]):
         solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
 
 

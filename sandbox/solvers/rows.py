@@ -53,9 +53,19 @@ class Rows:
         self.ra_body = ti.Vector.field(3, ti.f32, c)  # anchors in the bodies' frames at the step start
         self.rb_body = ti.Vector.field(3, ti.f32, c)
         self.approach = ti.field(ti.f32, c)  # [m/s] normal velocity before the step (restitution)
+        self.sep_now = ti.field(ti.f32, c)  # [m] separation at the last position update (normal_target)
         # per-step constants of the row update: 1/h_sub, bias rate, softness 1/c, max push, restitution threshold
         self.params = ti.field(ti.f32, 8)
         self.lam = ti.Vector.field(3, ti.f32, c)  # accumulated impulses (n, t1, t2) [N s]
+        # per step, with the schedule's mass scale s (prepare_response): rows e = n, t1, t2
+        self.ang_a = ti.Matrix.field(3, 3, ti.f32, c)  # r_a x e
+        self.ang_b = ti.Matrix.field(3, 3, ti.f32, c)
+        self.resp_a = ti.Matrix.field(3, 3, ti.f32, c)  # s_a I_a^-1 (r_a x e)
+        self.resp_b = ti.Matrix.field(3, 3, ti.f32, c)
+        self.lin_a = ti.field(ti.f32, c)  # s_a / m_a
+        self.lin_b = ti.field(ti.f32, c)
+        self.k_split = ti.Vector.field(3, ti.f32, c)  # K~ of the rigid rows (n, t1, t2)
+        self.k_soft = ti.field(ti.f32, c)  # K~_n + gamma of the soft normal row
         self.residual = ti.field(ti.f32, c)  # squared LCP residual of the point's rows [(m/s)^2]
 
 
@@ -110,6 +120,7 @@ def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), i
         rows.k_b[q] = vec3(_share(imb, ib, rb, n), _share(imb, ib, rb, t1), _share(imb, ib, rb, t2))
         v_rel = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
         rows.approach[q] = v_rel.dot(n)
+        rows.sep_now[q] = c.sep[q]  # the bodies have not moved since the narrowphase
 
 
 @ti.func
@@ -128,10 +139,20 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
 def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32, mode: ti.template()):
     """(target velocity b, compliance gamma) of point q's normal row: the row asks for
     n . v_rel + b + gamma lambda >= 0. Gaps are rigid speculative targets s / h; a
-    penetration gets the soft spring in BIASED mode and nothing in RELAX mode."""
+    penetration gets the soft spring in BIASED mode and nothing in RELAX mode.
+
+    The separation changes only when positions do, i.e. between a substep's biased and
+    relax sweeps: the relax sweep (the first to run after a position update) computes it
+    and keeps it in ``sep_now`` for the next substep's biased sweep (prepare_rows seeds it
+    for the first), so the two quaternion rotations are paid once per substep."""
     target = 0.0
     gamma = 0.0
-    s = current_separation(rows, c, bodies, q)
+    s = 0.0
+    if ti.static(mode == BIASED):
+        s = rows.sep_now[q]
+    else:
+        s = current_separation(rows, c, bodies, q)
+        rows.sep_now[q] = s
     if s > 0.0:
         target = s * rows.params[INV_H]
     elif ti.static(mode == BIASED):
@@ -140,55 +161,98 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
     return target, gamma
 
 
+@ti.kernel
+def prepare_response(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
+                     split: ti.template()):
+    """What a sweep needs of point q, once per step: the angular Jacobians r x e of both
+    bodies for e = n, t1, t2, the velocity responses s I^-1 (r x e) and s / m, and the
+    inverse effective masses of the three rows (the normal one soft and rigid).
+
+    ``s`` is the schedule's scale of the body's inverse mass and inertia (``scale[body]``
+    when ``split``, else 1: PGS), used in the effective mass *and* when propagating the
+    impulse into the block's velocity copies, which keeps a mass-split block consistent
+    (method.md 1.5). The compliance gamma comes from the *unsplit* response (module
+    docstring). Inverse inertias are those of the step start, as before: the rows of a
+    step are linear in the impulses, so the sweep is dot products and axpys only (and
+    a division per row, as before: one rounding, not two for a reciprocal and a product)."""
+    for q in range(c.count[None]):
+        a = c.body_a[q]
+        b = c.body_b[q]
+        sa = 1.0
+        sb = 1.0
+        if ti.static(split):
+            sa = scale[a]
+            sb = scale[b]
+        ia = bodies.inv_inertia_world[a] * sa
+        ib = bodies.inv_inertia_world[b] * sb
+        ra = rows.ra[q]
+        rb = rows.rb[q]
+        ja = ti.Matrix.rows([ra.cross(c.normal[q]), ra.cross(rows.t1[q]), ra.cross(rows.t2[q])])
+        jb = ti.Matrix.rows([rb.cross(c.normal[q]), rb.cross(rows.t1[q]), rb.cross(rows.t2[q])])
+        rows.ang_a[q] = ja
+        rows.ang_b[q] = jb
+        rows.resp_a[q] = (ia @ ja.transpose()).transpose()  # row e = s_a I_a^-1 (r_a x e)
+        rows.resp_b[q] = (ib @ jb.transpose()).transpose()
+        rows.lin_a[q] = bodies.inv_mass[a] * sa
+        rows.lin_b[q] = bodies.inv_mass[b] * sb
+        k = sa * rows.k_a[q] + sb * rows.k_b[q]
+        gamma = rows.params[SOFTNESS] * (rows.k_a[q][0] + rows.k_b[q][0])
+        rows.k_split[q] = k
+        rows.k_soft[q] = k[0] + gamma
+
+
+@ti.func
+def _row(m, r: ti.template()) -> vec3:
+    return vec3(m[r, 0], m[r, 1], m[r, 2])
+
+
 @ti.func
 def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32,
-                va: vec3, wa: vec3, vb: vec3, wb: vec3, sa: ti.f32, sb: ti.f32, mode: ti.template(),
-                friction: ti.template()):
-    """Friction rows then the normal row of point q, on velocity copies.
+                va: vec3, wa: vec3, vb: vec3, wb: vec3, mode: ti.template(), friction: ti.template()):
+    """Friction rows then the normal row of point q, on velocity copies, with the
+    responses of ``prepare_response`` (which carry the schedule's mass scale).
 
-    ``sa``/``sb`` scale body a's/b's inverse mass and inertia, both in the
-    effective mass and when propagating the impulse into the copies, which keeps
-    a mass-split block consistent (method.md 1.5). Friction is an isotropic cone:
-    the tangent impulse is projected onto the disk of radius mu * lambda_n.
-    The normal row goes last so non-penetration has the final word (Box2D v3).
-    ``mode``: BIASED (soft, with position bias), RELAX (rigid, no bias) or
-    RESTITUTION (normal row only, towards -e times the approach speed).
+    Friction is an isotropic cone: the tangent impulse is projected onto the disk of
+    radius mu * lambda_n. The normal row goes last so non-penetration has the final
+    word (Box2D v3). ``mode``: BIASED (soft, with position bias), RELAX (rigid, no
+    bias) or RESTITUTION (normal row only, towards -e times the approach speed).
     ``friction`` False (a scene without the friction effect) compiles the friction
     rows away.
     """
-    a = c.body_a[q]
-    b = c.body_b[q]
-    ima = bodies.inv_mass[a] * sa
-    imb = bodies.inv_mass[b] * sb
-    ia = bodies.inv_inertia_world[a] * sa
-    ib = bodies.inv_inertia_world[b] * sb
-    ra = rows.ra[q]
-    rb = rows.rb[q]
+    ma = rows.lin_a[q]
+    mb = rows.lin_b[q]
+    ja = rows.ang_a[q]
+    jb = rows.ang_b[q]
     n = c.normal[q]
-    k = sa * rows.k_a[q] + sb * rows.k_b[q]
+    k = rows.k_split[q]
     lam = rows.lam[q]
     if ti.static(mode != RESTITUTION and friction):
         t1 = rows.t1[q]
         t2 = rows.t2[q]
-        dv = vb + wb.cross(rb) - va - wa.cross(ra)
-        f1 = lam[1] - dv.dot(t1) / k[1]
-        f2 = lam[2] - dv.dot(t2) / k[2]
+        ra_ = rows.resp_a[q]
+        rb_ = rows.resp_b[q]
+        dl = vb - va
+        f1 = lam[1] - (dl.dot(t1) + wb.dot(_row(jb, 1)) - wa.dot(_row(ja, 1))) / k[1]
+        f2 = lam[2] - (dl.dot(t2) + wb.dot(_row(jb, 2)) - wa.dot(_row(ja, 2))) / k[2]
         limit = c.friction[q] * lam[0]
         mag = ti.sqrt(f1 * f1 + f2 * f2)
         if mag > limit:
             s = limit / mag
             f1 *= s
             f2 *= s
-        imp = t1 * (f1 - lam[1]) + t2 * (f2 - lam[2])
-        va -= ima * imp
-        wa -= ia @ ra.cross(imp)
-        vb += imb * imp
-        wb += ib @ rb.cross(imp)
+        d1 = f1 - lam[1]
+        d2 = f2 - lam[2]
+        imp = t1 * d1 + t2 * d2
+        va -= ma * imp
+        wa -= _row(ra_, 1) * d1 + _row(ra_, 2) * d2
+        vb += mb * imp
+        wb += _row(rb_, 1) * d1 + _row(rb_, 2) * d2
         lam[1] = f1
         lam[2] = f2
     # normal row
     target = 0.0
     gamma = 0.0
+    kn = k[0]
     active = True
     if ti.static(mode == RESTITUTION):
         e = c.restitution[q]
@@ -197,14 +261,16 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
         target = e * vn0
     else:
         target, gamma = normal_target(rows, c, bodies, q, mode)
+        if ti.static(mode == BIASED):
+            kn = rows.k_soft[q]
     if active:
-        dv = vb + wb.cross(rb) - va - wa.cross(ra)
-        ln = ti.max(lam[0] - (dv.dot(n) + target + gamma * lam[0]) / (k[0] + gamma), 0.0)
-        imp = n * (ln - lam[0])
-        va -= ima * imp
-        wa -= ia @ ra.cross(imp)
-        vb += imb * imp
-        wb += ib @ rb.cross(imp)
+        vn = (vb - va).dot(n) + wb.dot(_row(jb, 0)) - wa.dot(_row(ja, 0))
+        ln = ti.max(lam[0] - (vn + target + gamma * lam[0]) / kn, 0.0)
+        d = ln - lam[0]
+        va -= ma * d * n
+        wa -= _row(rows.resp_a[q], 0) * d
+        vb += mb * d * n
+        wb += _row(rows.resp_b[q], 0) * d
         lam[0] = ln
     rows.lam[q] = lam
     return va, wa, vb, wb
