@@ -137,6 +137,11 @@ def _wait_status(page, pattern: str, timeout: float = 60.0) -> re.Match:
     raise AssertionError(f"status never matched {pattern!r}; last: {text!r}")
 
 
+def _step(page) -> int:
+    """The world's step count, from the stats table ("338 (t = 5.63 s)")."""
+    return int(page.get_by_text(re.compile(r"\(t = [\d.]+ s\)")).first.inner_text().split()[0])
+
+
 def _choose(page, label: str, option: str) -> None:
     page.get_by_label(label, exact=True).click()
     page.get_by_role("option", name=option, exact=True).click()
@@ -192,6 +197,31 @@ def test_browser_session(browser, server):
     shot = ARTIFACTS / "web_sandbox.png"
     page.screenshot(path=str(shot))
     assert shot.stat().st_size > 10_000
+
+    # Click the middle of the view: the static pedestal is selected; fracturing it fails with a
+    # notification in the page, and the world goes on.
+    box = canvas.bounding_box()
+    cx, cy = box["x"] + box["width"] / 2, box["y"] + box["height"] / 2
+    page.mouse.click(cx, cy)
+    page.get_by_text(re.compile(r"Body 0 \(pedestal\): box, static")).wait_for(timeout=30_000)
+    page.get_by_role("button", name="Fracture selected").click()
+    page.get_by_text(re.compile(r"body 0 \('pedestal'\) is static and cannot be fractured")).wait_for(timeout=30_000)
+    step = _step(page)
+    time.sleep(1.5)
+    assert _step(page) > step
+
+    # The box resting on the pedestal is just above the middle: select it and fracture it.
+    for dy in range(15, 300, 15):
+        page.mouse.click(cx, cy - dy)
+        time.sleep(0.6)
+        if page.get_by_text(re.compile(r"Body 1 \(on_top\)")).count():
+            break
+    else:
+        raise AssertionError("clicking above the pedestal never selected the box on it")
+    n2 = int(_wait_status(page, r"(\d+) bodies").group(1))
+    page.get_by_role("button", name="Fracture selected").click()
+    _wait_status(page, rf"{n2 + 7} bodies")
+    server.wait_for(r"\[sandbox\] fracture body 1 into 8 pieces", 30)
 
     # Contact drawing and a scene change: the world is rebuilt, the solver kept.
     page.get_by_label("Contact points", exact=True).check()

@@ -102,6 +102,12 @@ class ControlPanel:
             self.drop.on_click(self._on_drop)
         with gui.add_folder("Selection"):
             self.selection = gui.add_markdown("Click a body to select it.")
+            self.pieces = gui.add_slider("Pieces", 2, 32, 1, 8, hint="Voronoi cells of a convex body "
+                                         "(a compound breaks into its convex hulls)")
+            self.burst = gui.add_slider("Burst [m/s]", 0.0, 5.0, 0.1, 1.0,
+                                        hint="outward speed given to the pieces (momentum is conserved)")
+            self.fracture = gui.add_button("Fracture selected", disabled=True)
+            self.fracture.on_click(self._on_fracture)
             self.remove = gui.add_button("Remove selected", disabled=True)
             self.remove.on_click(self._on_remove)
         with gui.add_folder("View"):
@@ -226,6 +232,23 @@ class ControlPanel:
         self.sim.submit(f"drop {count} {mix}", run, on_error=self._notify(event, "Drop debris"))
 
     @_user_action
+    def _on_fracture(self, event) -> None:
+        body = self.selected
+        if body is None:
+            return
+        pieces, burst = int(self.pieces.value), float(self.burst.value)
+        self._drops += 1
+        seed = self._drops
+
+        def run(s):
+            mass = s.world.body_specs[body].mass
+            ev = EventSpec(time=0.0, kind="fracture", bodies=[body], pieces=pieces, seed=seed,
+                           outward_impulse=burst * mass)
+            s.apply(_timed(s, ev))
+            self.selected = None
+        self.sim.submit(f"fracture body {body} into {pieces} pieces", run, on_error=self._notify(event, "Fracture"))
+
+    @_user_action
     def _on_remove(self, event) -> None:
         body = self.selected
         if body is None:
@@ -294,7 +317,8 @@ class ControlPanel:
             f"| step | {snap.step} (t = {snap.step * snap.dt:.2f} s) |",
             f"| sim | {snap.steps_per_second:.1f} steps/s ({snap.realtime_factor:.2f}× real time) |",
             f"| render | {render_fps:.1f} FPS |",
-            f"| ms/step | {t.get('total', 0.0):.2f} ({stages}) |",
+            f"| ms/step | {t.get('total', 0.0):.2f} |",
+            f"| sampled step [ms] | {stages} |",
             f"| kinetic energy | {m['kinetic_energy']:.3e} J |",
             f"| max penetration | {1e3 * m['max_penetration']:.2f} mm |",
             f"| residual RMS | {m['residual_rms']:.2e} m/s |",
@@ -316,6 +340,7 @@ class ControlPanel:
                     f"|v| = {snap.speeds[self.selected]:.3g} m/s")
         self._set(self.selection, "content", text)
         self._set(self.remove, "disabled", self.selected is None)
+        self._set(self.fracture, "disabled", self.selected is None)
 
     def _sync(self, handle, value) -> None:
         """Show the world's value without firing the widget's callback again."""
