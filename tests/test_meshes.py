@@ -302,4 +302,4 @@ def test_missing_coacd_is_a_scene_error_with_the_install_hint(monkeypatch, tmp_p
 
     monkeypatch.setattr(metadata, "version", not_installed)
     monkeypatch.setenv("SANDBOX_CACHE", str(tmp_path))
-    _expect([_mesh_body()], "body[0].generator", "CoACD is not installed: pip install 'mass-splitting-sandbox[fracture]'")
+    _expect([_mesh_body()], "body[0].generator", "CoACD is not installed: pip install coacd shapely manifold3d")

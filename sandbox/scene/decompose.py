@@ -131,7 +131,8 @@ def cache_dir() -> Path:
     return Path(base) / "mass-splitting-sandbox" / "coacd"
 
 
-INSTALL_HINT = "pip install 'mass-splitting-sandbox[fracture]' (coacd, shapely, manifold3d)"
+INSTALL_HINT = ("pip install coacd shapely manifold3d (dependencies of mass-splitting-sandbox: "
+                "the install is incomplete)")
 
 
 def coacd_version() -> str:

@@ -112,7 +112,7 @@ def _extrude(outline, holes, height: float, offset) -> tuple[np.ndarray, np.ndar
         import manifold3d  # noqa: F401  (trimesh's polygon triangulation engine)
         import shapely
     except ImportError as exc:
-        raise MeshError(f"this generator needs {exc.name}: pip install 'mass-splitting-sandbox[fracture]'") from None
+        raise MeshError(f"this generator needs {exc.name}: pip install {exc.name} (a dependency of mass-splitting-sandbox)") from None
 
     m = trimesh.creation.extrude_polygon(shapely.Polygon(outline, holes), float(height))
     return np.asarray(m.vertices, dtype=np.float64) + np.asarray(offset, dtype=np.float64), np.asarray(m.faces,
