@@ -20,6 +20,7 @@ as partner ``-1 - plane_index``.
 import numpy as np
 import taichi as ti
 
+from .integrate import ERR_BOUNDS
 from .math3d import quat_rotate, quat_to_mat
 from .prefix_sum import Scanner, exclusive_scan, sort_range
 
@@ -27,6 +28,14 @@ vec3 = ti.math.vec3
 ivec3 = ti.math.ivec3
 
 MAX_CELLS_PER_AXIS = 1 << 20
+"""Cell coordinates are clamped to +-this: a body very far away shares the border cells
+(the exact AABB test still decides), and no float-to-int cast can overflow."""
+MAX_SPAN_CELLS = 1 << 16
+"""A dynamic shape whose bounds (with its motion over the step) cover more grid cells than
+this is an error (ERR_BOUNDS): the solver diverged, or the shape is far larger than
+the median one that sets the cell size. Its bounds collapse to a point for the rest of the
+step (no loop over millions of cells, no int overflow in the cell count), and the world
+restores the last good state and says which body it was."""
 
 
 @ti.func
@@ -150,23 +159,44 @@ def compute_all_aabbs(bp: ti.template(), shapes: ti.template(), bodies: ti.templ
 
 
 @ti.func
+def _cell_coord(x: vec3, cell: ti.f32) -> ivec3:
+    g = x / cell
+    c = ivec3(0)
+    for k in ti.static(range(3)):
+        if g[k] == g[k]:  # NaN stays at cell 0 (the step is rejected by the finite guard)
+            c[k] = ti.cast(ti.floor(ti.min(ti.max(g[k], -MAX_CELLS_PER_AXIS), MAX_CELLS_PER_AXIS)), ti.i32)
+    return c
+
+
+@ti.func
 def _cell_range(lo: vec3, hi: vec3, cell: ti.f32):
-    a = ti.cast(ti.floor(lo / cell), ti.i32)
-    b = ti.cast(ti.floor(hi / cell), ti.i32)
-    return a, b
+    return _cell_coord(lo, cell), _cell_coord(hi, cell)
+
+
+@ti.func
+def _fits_grid(lo: vec3, hi: vec3, cell: ti.f32) -> ti.i32:
+    a, b = _cell_range(lo, hi, cell)
+    d = ti.cast(b - a + 1, ti.f32)  # float: the product of three spans can overflow an int
+    return d[0] * d[1] * d[2] <= MAX_SPAN_CELLS and (lo == lo).all() and (hi == hi).all()
 
 
 @ti.kernel
 def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
-                       dt: ti.f32):
+                       dt: ti.f32, err: ti.template()):
     """``dt`` [s] is the step: each AABB also covers where its shape can get to during the step
     (|v| dt + |w| r dt), so fast bodies find their partners and get speculative contacts
-    instead of tunnelling."""
+    instead of tunnelling. Bounds too large for the grids raise ERR_BOUNDS (MAX_SPAN_CELLS)."""
     n = shapes.dynamic_count[None]
     cell = bp.cell_size[None]
     for k in range(n):
         i = shapes.dynamic_ids[k]
         lo, hi = shape_world_aabb(shapes, bodies, i, margin + swept_distance(shapes, bodies, i, dt))
+        if not (_fits_grid(lo, hi, cell) and _fits_grid(lo, hi, bp.static_cell_size[None])):
+            ti.atomic_or(err.flags[None], ERR_BOUNDS)
+            ti.atomic_min(err.body[None], shapes.body[i])
+            centre = 0.5 * (lo + hi)
+            lo = centre
+            hi = centre
         bp.aabb_min[i] = lo
         bp.aabb_max[i] = hi
         a, b = _cell_range(lo, hi, cell)
@@ -227,7 +257,7 @@ def _visit_grid(bp: ti.template(), shapes: ti.template(), i: ti.i32, cell: ti.f3
                     if ti.static(dynamic):
                         wanted = j > i and shapes.body[j] != body_i
                     if wanted and _overlap(bp, i, j):
-                        ref = ti.cast(ti.floor(ti.max(lo, bp.aabb_min[j]) / cell), ti.i32)
+                        ref = _cell_coord(ti.max(lo, bp.aabb_min[j]), cell)
                         if (ref == c).all():
                             if ti.static(write):
                                 if base + count < bp.pair_capacity:

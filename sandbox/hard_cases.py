@@ -194,7 +194,7 @@ def run_case(case: Case, solver: str, iterations: int, steps: int | None = None)
             run.max_penetration.append(m["max_penetration"])
             run.max_speed.append(float(np.linalg.norm(st["linear_velocity"], axis=1).max()))
     except SimulationError as exc:
-        return False, f"non-finite: {exc}"
+        return False, f"stopped: {exc}"
     run.final = world.state()
     world.close()
     return case.judge(run)

@@ -33,6 +33,7 @@ mat3 = ti.math.mat3
 
 ERR_VELOCITY = 1
 ERR_POSE = 2
+ERR_BOUNDS = 4  # broadphase: a body's bounds span too many grid cells (broadphase.MAX_SPAN_CELLS)
 BIG = 2**30
 
 

@@ -455,15 +455,23 @@ class World:
         if flags:
             from .persistence import clear_history
 
+            from .broadphase import MAX_SPAN_CELLS
+            from .integrate import ERR_BOUNDS, ERR_POSE, ERR_VELOCITY
+
             body = int(b.errors.body[None])
-            restore_good_state(b.bodies)
-            clear_history(b.history)  # this step's impulses are not finite either: no warm start from them
-            stage = "solve (velocity)" if flags & 1 else "integrate_positions (pose)"
             name = self.body_name(body)
-            raise SimulationError(
-                f"step {self.step_count}: non-finite {stage} of body {body}{name}; "
-                "the world was restored to its last good state"
-            )
+            if flags & (ERR_VELOCITY | ERR_POSE):
+                stage = "solve (velocity)" if flags & ERR_VELOCITY else "integrate_positions (pose)"
+                problem = f"non-finite {stage} of body {body}{name}"
+            else:
+                v = float(np.linalg.norm(b.bodies.lin_vel[body]))
+                w = float(np.linalg.norm(b.bodies.ang_vel[body]))
+                problem = (f"body {body}{name} reached |v| = {v:.3g} m/s, |w| = {w:.3g} rad/s: its bounds over the "
+                           f"step cover more than {MAX_SPAN_CELLS} broadphase cells of {b.bp.cell_size[None]:.3g} m "
+                           "(the solver diverged, or the body is far larger than the typical one)")
+            restore_good_state(b.bodies)
+            clear_history(b.history)  # this step's impulses are not usable either: no warm start from them
+            raise SimulationError(f"step {self.step_count}: {problem}; the world was restored to its last good state")
 
     def _collide(self) -> None:
         from .broadphase import build_dynamic_grid, find_pairs
@@ -471,7 +479,7 @@ class World:
 
         b, p, margin = self.buf, self.profiler, self.settings.contact_margin
         with p.stage("broadphase"):
-            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, self._h)
+            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, self._h, b.errors)
             find_pairs(b.bp, b.shapes)
         with p.stage("narrowphase"):
             collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, margin, self.settings.slop, self._h, self.kinds)

@@ -27,3 +27,23 @@ def test_diverging_step_names_stage_and_body_and_keeps_last_good_state():
     world.settings = Settings()
     world.step(30)
     assert np.all(np.isfinite(world.state()["position"]))
+
+
+def test_runaway_body_stops_the_step_before_the_broadphase_overflows():
+    """A finite but absurd speed (a diverged solver) would make the body's swept bounds cover
+    billions of grid cells; the step stops with a message instead of overflowing or hanging."""
+    scene = Scene.from_dict(scene_dict([box_body([0, 0, 0.5]), box_body([3, 0, 0.5])]))
+    world = World(scene, solver="pgs", iterations=4, arch="cpu")
+    world.step(2)
+    world.set_velocity([1], angular=[0.0, 0.0, 3e7])
+    before = world.state()
+    with pytest.raises(SimulationError) as err:
+        world.step(1)
+    text = str(err.value)
+    assert "body 1" in text and "broadphase cells" in text and "last good state" in text
+    after = world.state()
+    for key in before:
+        np.testing.assert_array_equal(before[key], after[key], err_msg=key)
+    world.set_velocity([1], angular=[0.0, 0.0, 0.0])
+    world.step(5)  # and the world goes on
+    assert np.all(np.isfinite(world.state()["position"]))

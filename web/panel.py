@@ -173,7 +173,7 @@ class ControlPanel:
     def _on_world_button(self, event) -> None:
         choice = event.target.value
         if choice == "Play":
-            self.sim.submit("play", lambda s: setattr(s, "playing", True))
+            self.sim.submit("play", lambda s: (setattr(s, "playing", True), setattr(s, "last_error", None)))
         elif choice == "Pause":
             self.sim.submit("pause", lambda s: setattr(s, "playing", False))
         elif choice == "Step":
@@ -301,6 +301,8 @@ class ControlPanel:
         if self.sim.scene_path.stem in self.scene.options:
             self._sync(self.scene, self.sim.scene_path.stem)
         state = "▶ running" if snap.playing else "⏸ paused"
+        if snap.error and not snap.playing:
+            state += f" — {snap.error}"
         rec = " · ⏺ recording" if snap.recording else ""
         self._set(self.status, "content", f"**{self.sim.scene_path.stem}** · {len(snap.bodies)} bodies · "
                                           f"{snap.solver} × {snap.iterations} · {state}{rec}")

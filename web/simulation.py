@@ -54,6 +54,7 @@ class Snapshot:
     playing: bool
     recording: bool
     contacts: dict | None = None  # "point", "normal" when contact drawing is on
+    error: str | None = None  # the last SimulationError, until the world plays again
 
 
 @dataclass
@@ -94,6 +95,7 @@ class Simulation:
         self.realtime = True
         self.draw_contacts = False
         self.recorder = None
+        self.last_error: str | None = None  # why the world paused itself (a diverged step)
         self.gravity = None  # the scene's gravity, restored by "gravity on"
         self._queue: queue.Queue[Command] = queue.Queue()
         self._latest: Snapshot | None = None
@@ -249,6 +251,7 @@ class Simulation:
             self.world.step(1)
         except SimulationError as exc:
             self.playing = False
+            self.last_error = str(exc)
             self.log(f"[sandbox] paused: {exc}")
             return False
         finally:
@@ -309,6 +312,7 @@ class Simulation:
             playing=self.playing,
             recording=self.recorder is not None,
             contacts=contacts,
+            error=self.last_error,
         )
         with self._latest_lock:
             self._latest = snap
