@@ -77,6 +77,8 @@ class Broadphase:
         self.scanner = Scanner(max(sc, self.hash_size) + 1)
         # static grid, built once per world on the host
         self.static_cell_size = ti.field(ti.f32, ())
+        self.static_lo = ti.Vector.field(3, ti.f32, ())  # bounds of every static shape (empty: lo > hi)
+        self.static_hi = ti.Vector.field(3, ti.f32, ())
         self.static_hash_size = static_hash_size
         self.static_bucket_start = ti.field(ti.i32, static_hash_size + 1)
         self.static_entries = ti.field(ti.i32, max(1, static_entry_capacity))
@@ -86,6 +88,8 @@ class Broadphase:
         if grid["hash_size"] != self.static_hash_size:
             raise ValueError("static grid was built for another hash size")
         self.static_cell_size[None] = grid["cell_size"]
+        self.static_lo[None] = grid["lo"]
+        self.static_hi[None] = grid["hi"]
         self.static_bucket_start.from_numpy(grid["bucket_start"].astype(np.int32))
         entries = np.zeros(self.static_entries.shape[0], np.int32)
         entries[: len(grid["entries"])] = grid["entries"]
@@ -101,7 +105,7 @@ def build_static_grid(aabb_min: np.ndarray, aabb_max: np.ndarray, static_ids: np
     if len(static_ids) == 0:
         hs = hash_size or 16
         return {"hash_size": hs, "cell_size": 1.0, "bucket_start": np.zeros(hs + 1, np.int64),
-                "entries": np.zeros(0, np.int64)}
+                "entries": np.zeros(0, np.int64), "lo": (1.0, 1.0, 1.0), "hi": (0.0, 0.0, 0.0)}
     ext = (aabb_max[static_ids] - aabb_min[static_ids]).max(axis=1)
     cell = float(max(min_cell, np.median(ext)))
     lo = np.floor(aabb_min[static_ids] / cell).astype(np.int64)
@@ -122,7 +126,10 @@ def build_static_grid(aabb_min: np.ndarray, aabb_max: np.ndarray, static_ids: np
     counts = np.bincount(bucket, minlength=hs)
     start = np.zeros(hs + 1, np.int64)
     start[1:] = np.cumsum(counts)
-    return {"hash_size": hs, "cell_size": cell, "bucket_start": start, "entries": owners[order]}
+    return {"hash_size": hs, "cell_size": cell, "bucket_start": start, "entries": owners[order],
+            # padded by a cell: the device's float32 AABBs of the statics may round past these
+            "lo": tuple(float(x) - cell for x in aabb_min[static_ids].min(axis=0)),
+            "hi": tuple(float(x) + cell for x in aabb_max[static_ids].max(axis=0))}
 
 
 @ti.func
@@ -191,7 +198,7 @@ def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.temp
     for k in range(n):
         i = shapes.dynamic_ids[k]
         lo, hi = shape_world_aabb(shapes, bodies, i, margin + swept_distance(shapes, bodies, i, dt))
-        if not (_fits_grid(lo, hi, cell) and _fits_grid(lo, hi, bp.static_cell_size[None])):
+        if not _fits_grid(lo, hi, cell):
             ti.atomic_or(err.flags[None], ERR_BOUNDS)
             ti.atomic_min(err.body[None], shapes.body[i])
             centre = 0.5 * (lo + hi)
@@ -246,6 +253,10 @@ def _visit_grid(bp: ti.template(), shapes: ti.template(), i: ti.i32, cell: ti.f3
     body_i = shapes.body[i]
     count = found
     a, b = _cell_range(lo, hi, cell)
+    if ti.static(not dynamic):
+        # only the cells inside the static shapes' bounds can hold entries: a body far larger
+        # than the static cells (or a runaway one) visits those, not millions of empty cells
+        a, b = _cell_range(ti.max(lo, bp.static_lo[None]), ti.min(hi, bp.static_hi[None]), cell)
     for x in range(a[0], b[0] + 1):
         for y in range(a[1], b[1] + 1):
             for z in range(a[2], b[2] + 1):
