@@ -61,11 +61,10 @@ def _xf(q: vec4, p: vec3, v: vec3) -> vec3:
 @ti.func
 def _side_distance(pool: ti.template(), loop_start: ti.i32, loop_count: ti.i32, k: ti.i32, normal: vec3,
                    x: vec3) -> ti.f32:
-    """Signed distance [m] of x from side plane k of a face (> 0 outside); loops are CCW from outside."""
-    v0 = pool.vert[pool.loop[loop_start + k]]
-    v1 = pool.vert[pool.loop[loop_start + (k + 1) % loop_count]]
-    s = (v1 - v0).cross(normal)
-    return s.dot(x - v0) / ti.max(s.norm(), 1.0e-30)
+    """Signed distance [m] of x from side plane k of a face (> 0 outside); loops are CCW from
+    outside. The planes are precomputed per loop entry (``PolytopePool.side``)."""
+    s = pool.side[loop_start + k]
+    return s[0] * x[0] + s[1] * x[1] + s[2] * x[2] - s[3]
 
 
 @ti.func
