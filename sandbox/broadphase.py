@@ -160,8 +160,8 @@ def _cell_range(lo: vec3, hi: vec3, cell: ti.f32):
     return a, b
 
 
-@ti.kernel
-def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
+@ti.func
+def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
                        dt: ti.f32):
     """``dt`` [s] is the step: each AABB also covers where its shape can get to during the step
     (|v| dt + |w| r dt), so fast bodies find their partners and get speculative contacts
@@ -201,6 +201,12 @@ def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.temp
         bp.sorted_shape[slot] = bp.entry_shape[e]
     for h in range(bp.hash_size):
         sort_range(bp.sorted_shape, bp.bucket_start[h], bp.bucket_start[h + 1])  # the fill is in thread order
+
+
+@ti.kernel
+def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
+                       dt: ti.f32):
+    build_dynamic_grid_loops(bp, shapes, bodies, margin, dt)
 
 
 @ti.func
@@ -274,8 +280,8 @@ def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i
     return found
 
 
-@ti.kernel
-def find_pairs(bp: ti.template(), shapes: ti.template()):
+@ti.func
+def find_pairs_loops(bp: ti.template(), shapes: ti.template()):
     """Count pass (which keeps the first PAIRS_PER_SHAPE partners of each shape in its
     scratch row), scan, then copy; only a shape with more partners is enumerated again."""
     n = shapes.dynamic_count[None]
@@ -292,3 +298,8 @@ def find_pairs(bp: ti.template(), shapes: ti.template()):
                 bp.pair_b[base + e] = bp.scratch_b[k * PAIRS_PER_SHAPE + e]
         else:
             _visit_pairs(bp, shapes, k, base, WRITE)
+
+
+@ti.kernel
+def find_pairs(bp: ti.template(), shapes: ti.template()):
+    find_pairs_loops(bp, shapes)

@@ -86,8 +86,8 @@ def n_blocks(c: ti.template(), kind: ti.template()) -> ti.i32:
     return n
 
 
-@ti.kernel
-def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+@ti.func
+def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
                     mode: ti.template(), omega: ti.f32):
     nb = bodies.count[None]
     nk = n_blocks(c, kind)
@@ -122,6 +122,11 @@ def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), k
             s.scale[i] = 1.0 / omega
             s.weight[i] = omega
 
+
+@ti.kernel
+def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+                    mode: ti.template(), omega: ti.f32):
+    build_adjacency_loops(s, c, bodies, kind, mode, omega)
 
 
 @ti.func

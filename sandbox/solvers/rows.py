@@ -90,8 +90,8 @@ def _share(inv_mass: ti.f32, inv_inertia: ti.template(), r: vec3, e: vec3) -> ti
     return inv_mass + rxe.dot(inv_inertia @ rxe)
 
 
-@ti.kernel
-def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), inv_h: ti.f32, bias_rate: ti.f32,
+@ti.func
+def prepare_rows_loops(rows: ti.template(), c: ti.template(), bodies: ti.template(), inv_h: ti.f32, bias_rate: ti.f32,
                  softness: ti.f32, max_push: ti.f32, restitution_threshold: ti.f32):
     rows.params[INV_H] = inv_h
     rows.params[BIAS_RATE] = bias_rate
@@ -121,6 +121,12 @@ def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), i
         v_rel = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
         rows.approach[q] = v_rel.dot(n)
         rows.sep_now[q] = c.sep[q]  # the bodies have not moved since the narrowphase
+
+
+@ti.kernel
+def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), inv_h: ti.f32, bias_rate: ti.f32,
+                 softness: ti.f32, max_push: ti.f32, restitution_threshold: ti.f32):
+    prepare_rows_loops(rows, c, bodies, inv_h, bias_rate, softness, max_push, restitution_threshold)
 
 
 @ti.func
@@ -161,8 +167,8 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
     return target, gamma
 
 
-@ti.kernel
-def prepare_response(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
+@ti.func
+def prepare_response_loops(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
                      split: ti.template()):
     """What a sweep needs of point q, once per step: the angular Jacobians r x e of both
     bodies for e = n, t1, t2, the velocity responses s I^-1 (r x e) and s / m, and the
@@ -199,6 +205,12 @@ def prepare_response(rows: ti.template(), c: ti.template(), bodies: ti.template(
         gamma = rows.params[SOFTNESS] * (rows.k_a[q][0] + rows.k_b[q][0])
         rows.k_split[q] = k
         rows.k_soft[q] = k[0] + gamma
+
+
+@ti.kernel
+def prepare_response(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
+                     split: ti.template()):
+    prepare_response_loops(rows, c, bodies, scale, split)
 
 
 @ti.func
