@@ -266,8 +266,9 @@ def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i
     lo, hi = bp.aabb_min[i], bp.aabb_max[i]
     found = _visit_grid(bp, shapes, i, bp.cell_size[None], bp.hash_size - 1, bp.bucket_start, bp.sorted_shape, True,
                         base, 0, write)
-    found = _visit_grid(bp, shapes, i, bp.static_cell_size[None], bp.static_hash_size - 1, bp.static_bucket_start,
-                        bp.static_entries, False, base, found, write)
+    if bp.static_bucket_start[bp.static_hash_size] > 0:  # a static grid with entries (not just planes)
+        found = _visit_grid(bp, shapes, i, bp.static_cell_size[None], bp.static_hash_size - 1,
+                            bp.static_bucket_start, bp.static_entries, False, base, found, write)
     # planes
     for p in range(shapes.plane_count[None]):
         n = shapes.plane_normal[p]
