@@ -11,7 +11,10 @@ The step, stage by stage (names = profile keys = report keys):
    finite guard), ``relax`` (one rigid sweep without position bias)
 5. ``relax``        restitution pass, impulses stored for the next step
 
-Python only orchestrates. The iteration loop of step 4 is one kernel launch on
+Python only orchestrates. With the profiler off, the once-per-step stages run in three
+launches (``step_kernels.py``: state save + broadphase + narrowphase, then rows + matching +
+schedule set-up, then velocity check + contact store; the same loops as the per-stage
+kernels, the same bits). The iteration loop of step 4 is one kernel launch on
 the CPU (``Settings.iteration_launch``, solvers/substep.py: launch overhead,
 not arithmetic, bounds small scenes) or one launch per substep on CUDA; with
 the profiler on it runs stage by stage, a launch per phase, so that each stage
