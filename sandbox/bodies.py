@@ -62,20 +62,30 @@ class Bodies:
         }
 
 
-@ti.kernel
-def update_world_inertia(b: ti.template()):
+@ti.func
+def update_world_inertia_loops(b: ti.template()):
     for i in range(b.count[None]):
         r = quat_to_mat(b.rot[i])
         b.inv_inertia_world[i] = r @ b.inv_inertia[i] @ r.transpose()
 
 
 @ti.kernel
-def save_good_state(b: ti.template()):
+def update_world_inertia(b: ti.template()):
+    update_world_inertia_loops(b)
+
+
+@ti.func
+def save_good_state_loops(b: ti.template()):
     for i in range(b.count[None]):
         b.good_pos[i] = b.pos[i]
         b.good_rot[i] = b.rot[i]
         b.good_lin_vel[i] = b.lin_vel[i]
         b.good_ang_vel[i] = b.ang_vel[i]
+
+
+@ti.kernel
+def save_good_state(b: ti.template()):
+    save_good_state_loops(b)
 
 
 @ti.kernel

@@ -36,6 +36,9 @@ this is an error (ERR_BOUNDS): the solver diverged, or the shape is far larger t
 the median one that sets the cell size. Its bounds collapse to a point for the rest of the
 step (no loop over millions of cells, no int overflow in the cell count), and the world
 restores the last good state and says which body it was."""
+PAIRS_PER_SHAPE = 16
+"""Partners a shape keeps from the counting pass (``find_pairs``); a shape with more is
+enumerated a second time to write them. 16 covers a dense box pile (mean ~4, max ~12)."""
 
 
 @ti.func
@@ -74,6 +77,7 @@ class Broadphase:
         self.pair_total = ti.field(ti.i32, ())
         self.pair_a = ti.field(ti.i32, self.pair_capacity)
         self.pair_b = ti.field(ti.i32, self.pair_capacity)
+        self.scratch_b = ti.field(ti.i32, sc * PAIRS_PER_SHAPE)  # partners seen by the counting pass
         self.scanner = Scanner(max(sc, self.hash_size) + 1)
         # static grid, built once per world on the host
         self.static_cell_size = ti.field(ti.f32, ())
@@ -187,9 +191,9 @@ def _fits_grid(lo: vec3, hi: vec3, cell: ti.f32) -> ti.i32:
     return d[0] * d[1] * d[2] <= MAX_SPAN_CELLS and (lo == lo).all() and (hi == hi).all()
 
 
-@ti.kernel
-def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
-                       dt: ti.f32, err: ti.template()):
+@ti.func
+def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
+                             dt: ti.f32, err: ti.template()):
     """``dt`` [s] is the step: each AABB also covers where its shape can get to during the step
     (|v| dt + |w| r dt), so fast bodies find their partners and get speculative contacts
     instead of tunnelling. Bounds too large for the grids raise ERR_BOUNDS (MAX_SPAN_CELLS)."""
@@ -236,10 +240,32 @@ def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.temp
         sort_range(bp.sorted_shape, bp.bucket_start[h], bp.bucket_start[h + 1])  # the fill is in thread order
 
 
+@ti.kernel
+def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
+                       dt: ti.f32, err: ti.template()):
+    build_dynamic_grid_loops(bp, shapes, bodies, margin, dt, err)
+
+
 @ti.func
 def _overlap(bp: ti.template(), i: ti.i32, j: ti.i32) -> ti.i32:
     lo_i, hi_i, lo_j, hi_j = bp.aabb_min[i], bp.aabb_max[i], bp.aabb_min[j], bp.aabb_max[j]
     return (lo_i <= hi_j).all() and (lo_j <= hi_i).all()
+
+
+COUNT, SCRATCH, WRITE = 0, 1, 2
+"""What the enumeration does with a pair: count it only, keep it in the shape's scratch row
+(``base`` = the row's start), or write it to the pair list (``base`` = the shape's first pair)."""
+
+
+@ti.func
+def _emit(bp: ti.template(), i: ti.i32, j: ti.i32, base: ti.i32, index: ti.i32, write: ti.template()):
+    if ti.static(write == SCRATCH):
+        if index < PAIRS_PER_SHAPE:
+            bp.scratch_b[base + index] = j
+    elif ti.static(write == WRITE):
+        if base + index < bp.pair_capacity:
+            bp.pair_a[base + index] = i
+            bp.pair_b[base + index] = j
 
 
 @ti.func
@@ -270,10 +296,7 @@ def _visit_grid(bp: ti.template(), shapes: ti.template(), i: ti.i32, cell: ti.f3
                     if wanted and _overlap(bp, i, j):
                         ref = _cell_coord(ti.max(lo, bp.aabb_min[j]), cell)
                         if (ref == c).all():
-                            if ti.static(write):
-                                if base + count < bp.pair_capacity:
-                                    bp.pair_a[base + count] = i
-                                    bp.pair_b[base + count] = j
+                            _emit(bp, i, j, base, count, write)
                             count += 1
     return count
 
@@ -284,8 +307,9 @@ def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i
     lo, hi = bp.aabb_min[i], bp.aabb_max[i]
     found = _visit_grid(bp, shapes, i, bp.cell_size[None], bp.hash_size - 1, bp.bucket_start, bp.sorted_shape, True,
                         base, 0, write)
-    found = _visit_grid(bp, shapes, i, bp.static_cell_size[None], bp.static_hash_size - 1, bp.static_bucket_start,
-                        bp.static_entries, False, base, found, write)
+    if bp.static_bucket_start[bp.static_hash_size] > 0:  # a static grid with entries (not just planes)
+        found = _visit_grid(bp, shapes, i, bp.static_cell_size[None], bp.static_hash_size - 1,
+                            bp.static_bucket_start, bp.static_entries, False, base, found, write)
     # planes
     for p in range(shapes.plane_count[None]):
         n = shapes.plane_normal[p]
@@ -293,19 +317,31 @@ def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i
         half = 0.5 * (hi - lo)
         lowest = n.dot(center) - (ti.abs(n[0]) * half[0] + ti.abs(n[1]) * half[1] + ti.abs(n[2]) * half[2])
         if lowest <= shapes.plane_offset[p]:
-            if ti.static(write):
-                if base + found < bp.pair_capacity:
-                    bp.pair_a[base + found] = i
-                    bp.pair_b[base + found] = -1 - p
+            _emit(bp, i, -1 - p, base, found, write)
             found += 1
     return found
 
 
-@ti.kernel
-def find_pairs(bp: ti.template(), shapes: ti.template()):
+@ti.func
+def find_pairs_loops(bp: ti.template(), shapes: ti.template()):
+    """Count pass (which keeps the first PAIRS_PER_SHAPE partners of each shape in its
+    scratch row), scan, then copy; only a shape with more partners is enumerated again."""
     n = shapes.dynamic_count[None]
     for k in range(n):
-        bp.pair_count[k] = _visit_pairs(bp, shapes, k, 0, False)
+        bp.pair_count[k] = _visit_pairs(bp, shapes, k, k * PAIRS_PER_SHAPE, SCRATCH)
     exclusive_scan(bp.scanner, bp.pair_count, bp.pair_start, n, bp.pair_total)
     for k in range(n):
-        _visit_pairs(bp, shapes, k, bp.pair_start[k], True)
+        cnt = bp.pair_count[k]
+        base = bp.pair_start[k]
+        if cnt <= PAIRS_PER_SHAPE:
+            i = shapes.dynamic_ids[k]
+            for e in range(ti.min(cnt, bp.pair_capacity - base)):
+                bp.pair_a[base + e] = i
+                bp.pair_b[base + e] = bp.scratch_b[k * PAIRS_PER_SHAPE + e]
+        else:
+            _visit_pairs(bp, shapes, k, base, WRITE)
+
+
+@ti.kernel
+def find_pairs(bp: ti.template(), shapes: ti.template()):
+    find_pairs_loops(bp, shapes)

@@ -123,8 +123,8 @@ def partner_material(shapes: ti.template(), partner: ti.i32):
     return f, e
 
 
-@ti.kernel
-def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
+@ti.func
+def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
                   pool: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32, kinds: ti.template()):
     """Narrowphase over every candidate pair, then pack the points and manifolds.
 
@@ -199,3 +199,9 @@ def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bo
         p1 = bp.pair_start[k + 1]
         c.shape_first[i] = c.point_start[ti.min(p0, n_pairs)]
         c.shape_last[i] = c.point_start[ti.min(p1, n_pairs)]
+
+
+@ti.kernel
+def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
+                  pool: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32, kinds: ti.template()):
+    collide_pairs_loops(c, bp, shapes, bodies, pool, margin, slop, h, kinds)

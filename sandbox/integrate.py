@@ -101,13 +101,18 @@ def rotate_free(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia: ti.te
     return q1, quat_rotate(q1, inv_inertia @ l1)
 
 
-@ti.kernel
-def check_velocities(bodies: ti.template(), err: ti.template()):
+@ti.func
+def check_velocities_loops(bodies: ti.template(), err: ti.template()):
     for i in range(bodies.count[None]):
         if bodies.inv_mass[i] > 0.0:
             if any_nonfinite3(bodies.lin_vel[i]) or any_nonfinite3(bodies.ang_vel[i]):
                 ti.atomic_or(err.flags[None], ERR_VELOCITY)
                 ti.atomic_min(err.body[None], i)
+
+
+@ti.kernel
+def check_velocities(bodies: ti.template(), err: ti.template()):
+    check_velocities_loops(bodies, err)
 
 
 @ti.func

@@ -42,8 +42,8 @@ def clear_history(hist: ti.template()):
         hist.shape_last[i] = 0
 
 
-@ti.kernel
-def match_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
+@ti.func
+def match_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
                    shapes: ti.template(), match_distance: ti.f32, warm_factor: ti.f32):
     """``warm_factor`` also converts the stored per-step impulse to this step's per-substep one."""
     for q in range(c.count[None]):
@@ -71,7 +71,13 @@ def match_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), b
 
 
 @ti.kernel
-def store_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
+def match_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
+                   shapes: ti.template(), match_distance: ti.f32, warm_factor: ti.f32):
+    match_contacts_loops(hist, c, rows, bodies, shapes, match_distance, warm_factor)
+
+
+@ti.func
+def store_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
                    shapes: ti.template(), substeps: ti.i32):
     n = ti.min(c.count[None], hist.capacity)
     hist.count[None] = n
@@ -91,3 +97,9 @@ def store_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), b
         i = shapes.dynamic_ids[k]
         hist.shape_first[i] = c.shape_first[i]
         hist.shape_last[i] = ti.min(c.shape_last[i], n)
+
+
+@ti.kernel
+def store_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
+                   shapes: ti.template(), substeps: ti.i32):
+    store_contacts_loops(hist, c, rows, bodies, shapes, substeps)

@@ -54,6 +54,9 @@ class PolytopePool:
         self.face_loop_start = ti.field(ti.i32, nf)
         self.face_loop_count = ti.field(ti.i32, nf)
         self.loop = ti.field(ti.i32, nl)
+        # per loop entry k of a face: the side plane through loop edge k -> k + 1, outward unit
+        # normal (xyz) and offset (w), so clipping reads a plane instead of rebuilding it
+        self.side = ti.Vector.field(4, ti.f32, nl)
         self.edge_vert = ti.Vector.field(2, ti.i32, ne)
         self.edge_face = ti.Vector.field(2, ti.i32, ne)
 
@@ -68,14 +71,15 @@ class PolytopePool:
         if not polytopes:
             return offsets
         vs, fs, ls, es = offsets
-        rows, verts, fn, fo, fls, flc, loops, ev, ef, cen = [], [], [], [], [], [], [], [], [], []
+        rows, verts, fn, fo, fls, flc, loops, ev, ef, cen, sides = [], [], [], [], [], [], [], [], [], [], []
         for p in polytopes:
             rows.append((vs, len(p.vertices), fs, len(p.face_loops), es, len(p.edges)))
             verts.append(p.vertices)
             cen.append(p.centroid)
             fn.append(p.face_normals)
             fo.append(p.face_offsets)
-            for loop in p.face_loops:
+            for f, loop in enumerate(p.face_loops):
+                sides.append(_side_planes(p.vertices, p.face_normals[f], loop))
                 fls.append(ls)
                 flc.append(len(loop))
                 loops.append(np.asarray(loop) + vs)
@@ -99,10 +103,21 @@ class PolytopePool:
         _write(self.face_loop_start, offsets[1], np.asarray(fls, np.int32))
         _write(self.face_loop_count, offsets[1], np.asarray(flc, np.int32))
         _write(self.loop, offsets[2], np.concatenate(loops).astype(np.int32))
+        _write(self.side, offsets[2], np.concatenate(sides).astype(np.float32))
         _write(self.edge_vert, offsets[3], np.concatenate(ev).astype(np.int32))
         _write(self.edge_face, offsets[3], np.concatenate(ef).astype(np.int32))
         self.count = first + len(polytopes)
         return (vs, fs, ls, es)
+
+
+def _side_planes(vertices: np.ndarray, normal: np.ndarray, loop) -> np.ndarray:
+    """(k, 4): unit outward normal and offset of the side plane through loop edge k -> k + 1
+    (loops are counter-clockwise seen from outside, so (v1 - v0) x n points out of the face)."""
+    v0 = vertices[np.asarray(loop)]
+    v1 = vertices[np.roll(np.asarray(loop), -1)]
+    s = np.cross(v1 - v0, normal)
+    s /= np.maximum(np.linalg.norm(s, axis=1, keepdims=True), 1.0e-30)
+    return np.c_[s, (s * v0).sum(axis=1)]
 
 
 def _write(field, first: int, values: np.ndarray) -> None:

@@ -11,7 +11,10 @@ The step, stage by stage (names = profile keys = report keys):
    finite guard), ``relax`` (one rigid sweep without position bias)
 5. ``relax``        restitution pass, impulses stored for the next step
 
-Python only orchestrates. The iteration loop of step 4 is one kernel launch on
+Python only orchestrates. With the profiler off, the once-per-step stages run in three
+launches (``step_kernels.py``: state save + broadphase + narrowphase, then rows + matching +
+schedule set-up, then velocity check + contact store; the same loops as the per-stage
+kernels, the same bits). The iteration loop of step 4 is one kernel launch on
 the CPU (``Settings.iteration_launch``, solvers/substep.py: launch overhead,
 not arithmetic, bounds small scenes) or one launch per substep on CUDA; with
 the profiler on it runs stage by stage, a launch per phase, so that each stage
@@ -73,6 +76,7 @@ class World:
         self.substeps = int(scene.world.substeps)
         self.gravity = np.asarray(scene.world.gravity, dtype=np.float32)
         self.profiler = Profiler(profile)
+        self._fuse_step = True  # False: the once-per-step stages launch one by one (benchmarks compare)
         self.step_count = 0
         self.record_residuals = False
         """When True, ``residual_history`` holds the RMS LCP residual [m/s] after every biased
@@ -379,12 +383,17 @@ class World:
         k = self.iterations
         h_sub = h / k
         gravity = ti.math.vec3(*self.gravity)
-        save_good_state(b.bodies)
-        b.errors.clear()
-        update_world_inertia(b.bodies)
+        fused = self._fuse_step and not p.enabled  # the once-per-step stages in three launches (step_kernels.py)
+        if not fused:
+            save_good_state(b.bodies)
+            b.errors.clear()
+            update_world_inertia(b.bodies)
         self.residual_history = []
         for attempt in range(MAX_GROWTH_RETRIES + 1):
-            self._collide()
+            if fused:  # a retry saves the restored (same) state again and redoes the inertias: same bits
+                self._begin_and_collide()
+            else:
+                self._collide()
             if not self._grow_if_needed():
                 break
             b = self.buf
@@ -398,10 +407,20 @@ class World:
             clear_points(b.impacts, b.contacts)
         with p.stage("prepare"):
             bias_rate, softness = soft_contact_coefficients(h_sub, s.contact_hertz, s.contact_damping_ratio)
-            prepare_rows(b.rows, b.contacts, b.bodies, 1.0 / h_sub, bias_rate, softness, s.max_push_speed,
-                         s.restitution_threshold)
-            match_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, s.match_distance, s.warm_start / k)
-            self._prepare_schedule()
+            if fused:
+                from .step_kernels import prepare_step
+
+                kind, blk, mode, omega, split = self._schedule_setup()
+                prepare_step(b.rows, b.contacts, b.bodies, b.history, b.shapes, blk, 1.0 / h_sub, bias_rate, softness,
+                             s.max_push_speed, s.restitution_threshold, s.match_distance, s.warm_start / k, kind,
+                             mode, omega, split)
+                self._prepare_coloring()
+            else:
+                prepare_rows(b.rows, b.contacts, b.bodies, 1.0 / h_sub, bias_rate, softness, s.max_push_speed,
+                             s.restitution_threshold)
+                match_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, s.match_distance,
+                               s.warm_start / k)
+                self._prepare_schedule()
         launch = self._iteration_launch(watch)
         warm = s.warm_start > 0.0
         fold = substep.folds_warm_start(self._visit(), warm)
@@ -449,8 +468,13 @@ class World:
         with p.stage("relax"):
             if self.restitution and self._host.has_restitution:
                 self._sweep(RESTITUTION)
-            check_velocities(b.bodies, b.errors)
-            store_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, k)
+            if fused:
+                from .step_kernels import finish_step
+
+                finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, k)
+            else:
+                check_velocities(b.bodies, b.errors)
+                store_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, k)
         flags = int(b.errors.flags[None])
         if flags:
             from .persistence import clear_history
@@ -483,6 +507,13 @@ class World:
             find_pairs(b.bp, b.shapes)
         with p.stage("narrowphase"):
             collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, margin, self.settings.slop, self._h, self.kinds)
+
+    def _begin_and_collide(self) -> None:
+        from .step_kernels import begin_and_collide
+
+        b, st = self.buf, self.settings
+        begin_and_collide(b.bodies, b.errors, b.bp, b.shapes, b.contacts, b.pool, st.contact_margin, st.slop,
+                          self._h, self.kinds)
 
     def _grow_if_needed(self) -> bool:
         """After an overflow: move to a bigger buffer class, keeping the body state, and say so."""
@@ -527,16 +558,31 @@ class World:
         kind = blocks.PER_POINT if SOLVERS[self.solver].block == "point" else blocks.PER_MANIFOLD
         return kind, self.buf.blocks, self.buf.rows, self.buf.contacts, self.buf.bodies
 
-    def _prepare_schedule(self) -> None:
-        """Per-step set-up of the chosen schedule: body adjacency (all), colouring (pgs-colored)."""
-        from .solvers import blocks, pgs
-        from .solvers.rows import prepare_response
+    def _schedule_setup(self):
+        """(kind, block scratch, adjacency mode, omega, split responses) of the chosen schedule."""
+        from .solvers import blocks
 
         kind, b, rows, c, bodies = self._schedule()
         split = self.solver in ("mass-splitting", "block-mass-splitting")
         omega = self.solver_options.get("relaxation") or (1.0 if split else self.settings.jacobi_relaxation)
-        blocks.build_adjacency(b, c, bodies, kind, blocks.MODE_SPLIT if split else blocks.MODE_JACOBI, float(omega))
-        prepare_response(rows, c, bodies, b.scale, not self.solver.startswith("pgs"))
+        return (kind, b, blocks.MODE_SPLIT if split else blocks.MODE_JACOBI, float(omega),
+                not self.solver.startswith("pgs"))
+
+    def _prepare_schedule(self) -> None:
+        """Per-step set-up of the chosen schedule: body adjacency (all), colouring (pgs-colored)."""
+        from .solvers import blocks
+        from .solvers.rows import prepare_response
+
+        kind, b, mode, omega, split = self._schedule_setup()
+        _, _, rows, c, bodies = self._schedule()
+        blocks.build_adjacency(b, c, bodies, kind, mode, omega)
+        prepare_response(rows, c, bodies, b.scale, split)
+        self._prepare_coloring()
+
+    def _prepare_coloring(self) -> None:
+        from .solvers import pgs
+
+        c, bodies = self.buf.contacts, self.buf.bodies
         if self.solver == "pgs-colored":
             o = self.solver_options
             col = self.buf.coloring

@@ -51,6 +51,8 @@ vec4 = ti.math.vec4
 EDGE_CROSSING = 1 << 12
 REF_CORNER = 2 << 12
 FALLBACK_KIND = 3
+CANDIDATE_BUFFER = 16
+"""Clip candidates kept in registers/local memory (a box-box patch has at most 8)."""
 
 
 @ti.func
@@ -61,11 +63,10 @@ def _xf(q: vec4, p: vec3, v: vec3) -> vec3:
 @ti.func
 def _side_distance(pool: ti.template(), loop_start: ti.i32, loop_count: ti.i32, k: ti.i32, normal: vec3,
                    x: vec3) -> ti.f32:
-    """Signed distance [m] of x from side plane k of a face (> 0 outside); loops are CCW from outside."""
-    v0 = pool.vert[pool.loop[loop_start + k]]
-    v1 = pool.vert[pool.loop[loop_start + (k + 1) % loop_count]]
-    s = (v1 - v0).cross(normal)
-    return s.dot(x - v0) / ti.max(s.norm(), 1.0e-30)
+    """Signed distance [m] of x from side plane k of a face (> 0 outside); loops are CCW from
+    outside. The planes are precomputed per loop entry (``PolytopePool.side``)."""
+    s = pool.side[loop_start + k]
+    return s[0] * x[0] + s[1] * x[1] + s[2] * x[2] - s[3]
 
 
 @ti.func
@@ -75,6 +76,70 @@ def _inside_ref(pool: ti.template(), ls: ti.i32, lc: ti.i32, normal: vec3, x: ve
         if k != skip and _side_distance(pool, ls, lc, k, normal, x) > CLIP_EPS:
             inside = 0
     return inside
+
+
+@ti.func
+def _candidates(pool: ti.template(), r: ti.template(), pass_index: ti.i32, buffered: ti.template(),
+                buf_p: ti.template(), buf_s: ti.template(), buf_id: ti.template(), q_ir: vec4, p_ir: vec3,
+                q_ri: vec4, p_ri: vec3, n_r: vec3, o_r: ti.f32, rls: ti.i32, rlc: ti.i32, n_i: vec3, o_i: ti.f32,
+                n_r_i: vec3, ils: ti.i32, ilc: ti.i32, header: ti.i32, margin: ti.f32) -> ti.i32:
+    """Enumerate the clip candidates below the margin, in their fixed order: into the reducer's
+    pass ``pass_index`` (streaming), or into the first CANDIDATE_BUFFER rows of the buffer.
+    Returns how many there are."""
+    found = 0
+    total = ilc + ilc * rlc + rlc
+    # the crossings run j-major: keep incident edge j's end points between candidates
+    edge_j = -1
+    x0 = vec3(0.0, 0.0, 0.0)
+    x1 = vec3(0.0, 0.0, 0.0)
+    for c in range(total):
+        valid = 0
+        x = vec3(0.0, 0.0, 0.0)  # candidate on the incident face, reference frame
+        code = 0
+        if c < ilc:  # incident vertex
+            x = _xf(q_ir, p_ir, pool.vert[pool.loop[ils + c]])
+            valid = _inside_ref(pool, rls, rlc, n_r, x, -1)
+            code = c
+        elif c < ilc + ilc * rlc:  # incident edge j crossing side plane k
+            j = (c - ilc) // rlc
+            k = (c - ilc) % rlc
+            if j != edge_j:
+                edge_j = j
+                x0 = _xf(q_ir, p_ir, pool.vert[pool.loop[ils + j]])
+                x1 = _xf(q_ir, p_ir, pool.vert[pool.loop[ils + (j + 1) % ilc]])
+            d0 = _side_distance(pool, rls, rlc, k, n_r, x0)
+            d1 = _side_distance(pool, rls, rlc, k, n_r, x1)
+            if ti.min(d0, d1) < -CLIP_EPS and ti.max(d0, d1) > CLIP_EPS:
+                x = x0 + (d0 / (d0 - d1)) * (x1 - x0)
+                valid = _inside_ref(pool, rls, rlc, n_r, x, k)
+                code = EDGE_CROSSING | (j << 6) | k
+        else:  # reference corner k projected along n_r onto the incident plane
+            k = c - ilc - ilc * rlc
+            v = pool.vert[pool.loop[rls + k]]
+            v_i = _xf(q_ri, p_ri, v)
+            den = n_i.dot(n_r_i)
+            if den < -CORNER_MIN_COS:
+                t = (o_i - n_i.dot(v_i)) / den
+                x_i = v_i + n_r_i * t
+                valid = 1
+                for e in range(ilc):
+                    if _side_distance(pool, ils, ilc, e, n_i, x_i) > -CLIP_EPS:
+                        valid = 0
+                x = v + n_r * t
+                code = REF_CORNER | k
+        sep = n_r.dot(x) - o_r
+        if valid and sep < margin:
+            y = x - n_r * (0.5 * sep)
+            if ti.static(buffered):
+                if found < CANDIDATE_BUFFER:
+                    for cc in ti.static(range(3)):
+                        buf_p[found, cc] = y[cc]
+                    buf_s[found] = sep
+                    buf_id[found] = header | code
+            else:
+                reducer_visit(r, pass_index, y, sep, header | code, n_r)
+            found += 1
+    return found
 
 
 @ti.func
@@ -115,51 +180,24 @@ def face_contact(pool: ti.template(), m: ti.template(), a: ShapePose, b: ShapePo
     header = (ref_on_b << 28) | (ref_face << 21) | (inc << 14)
 
     r = reducer_new()
-    total = ilc + ilc * rlc + rlc
-    for pass_index in range(REDUCE_PASSES):
-        if reducer_needs_pass(r, pass_index):
-            # the crossings run j-major: keep incident edge j's end points between candidates
-            edge_j = -1
-            x0 = vec3(0.0, 0.0, 0.0)
-            x1 = vec3(0.0, 0.0, 0.0)
-            for c in range(total):
-                valid = 0
-                x = vec3(0.0, 0.0, 0.0)  # candidate on the incident face, reference frame
-                code = 0
-                if c < ilc:  # incident vertex
-                    x = _xf(q_ir, p_ir, pool.vert[pool.loop[ils + c]])
-                    valid = _inside_ref(pool, rls, rlc, n_r, x, -1)
-                    code = c
-                elif c < ilc + ilc * rlc:  # incident edge j crossing side plane k
-                    j = (c - ilc) // rlc
-                    k = (c - ilc) % rlc
-                    if j != edge_j:
-                        edge_j = j
-                        x0 = _xf(q_ir, p_ir, pool.vert[pool.loop[ils + j]])
-                        x1 = _xf(q_ir, p_ir, pool.vert[pool.loop[ils + (j + 1) % ilc]])
-                    d0 = _side_distance(pool, rls, rlc, k, n_r, x0)
-                    d1 = _side_distance(pool, rls, rlc, k, n_r, x1)
-                    if ti.min(d0, d1) < -CLIP_EPS and ti.max(d0, d1) > CLIP_EPS:
-                        x = x0 + (d0 / (d0 - d1)) * (x1 - x0)
-                        valid = _inside_ref(pool, rls, rlc, n_r, x, k)
-                        code = EDGE_CROSSING | (j << 6) | k
-                else:  # reference corner k projected along n_r onto the incident plane
-                    k = c - ilc - ilc * rlc
-                    v = pool.vert[pool.loop[rls + k]]
-                    v_i = _xf(q_ri, p_ri, v)
-                    den = n_i.dot(n_r_i)
-                    if den < -CORNER_MIN_COS:
-                        t = (o_i - n_i.dot(v_i)) / den
-                        x_i = v_i + n_r_i * t
-                        valid = 1
-                        for e in range(ilc):
-                            if _side_distance(pool, ils, ilc, e, n_i, x_i) > -CLIP_EPS:
-                                valid = 0
-                        x = v + n_r * t
-                        code = REF_CORNER | k
-                sep = n_r.dot(x) - o_r
-                if valid and sep < margin:
-                    reducer_visit(r, pass_index, x - n_r * (0.5 * sep), sep, header | code, n_r)
+    # Candidates are made once into a small buffer and the reducer's passes read it; only a
+    # face pair with more than CANDIDATE_BUFFER candidates (large hull faces) regenerates
+    # them per pass (the streaming scheme of reduce.py). Same candidates, same order.
+    buf_p = ti.Matrix.zero(ti.f32, CANDIDATE_BUFFER, 3)
+    buf_s = ti.Vector.zero(ti.f32, CANDIDATE_BUFFER)
+    buf_id = ti.Vector.zero(ti.i32, CANDIDATE_BUFFER)
+    found = _candidates(pool, r, 0, True, buf_p, buf_s, buf_id, q_ir, p_ir, q_ri, p_ri, n_r, o_r, rls, rlc, n_i, o_i,
+                        n_r_i, ils, ilc, header, margin)
+    if found <= CANDIDATE_BUFFER:
+        for pass_index in range(REDUCE_PASSES):
+            if reducer_needs_pass(r, pass_index):
+                for i in range(found):
+                    reducer_visit(r, pass_index, vec3(buf_p[i, 0], buf_p[i, 1], buf_p[i, 2]), buf_s[i], buf_id[i], n_r)
+    else:
+        for pass_index in range(REDUCE_PASSES):
+            if reducer_needs_pass(r, pass_index):
+                _candidates(pool, r, pass_index, False, buf_p, buf_s, buf_id, q_ir, p_ir, q_ri, p_ri, n_r, o_r, rls,
+                            rlc, n_i, o_i, n_r_i, ils, ilc, header, margin)
 
     n_w = quat_rotate(rot_w, n_r)
     m.normal = n_w

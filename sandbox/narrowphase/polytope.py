@@ -42,7 +42,8 @@ Plane-polytope feature id: the polytope's local vertex index.
 import taichi as ti
 
 from ..math3d import quat_conj, quat_mul, quat_rotate, quat_rotate_inv
-from ..shapes import TRIANGLE
+from ..shapes import BOX, TRIANGLE
+from .box_sat import box_edge_query, box_face_queries
 from .clip import face_contact
 from .manifold import Manifold, ShapePose, manifold_add
 from .reduce import REDUCE_PASSES, reducer_finish, reducer_needs_pass, reducer_new, reducer_visit
@@ -104,13 +105,25 @@ def collide_polytope_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, m
         n_tri = quat_rotate(q_ba, pool.face_normal[f0])
         if n_tri.dot(pool.centroid[pa]) - (pool.face_offset[f0] + n_tri.dot(p_ba)) < 0.0:
             in_front = 0
+    boxes = a.kind == BOX and b.kind == BOX
     if in_front:
-        fa_all, fa_ok, face_a, vert_a = face_query_a(pool, pa, pb, q_ba, p_ba, tri, n_tri)
-        fb_all, fb_ok, face_b, vert_b = face_query_b(pool, pa, pb, q_ba, p_ba, tri)
+        fa_all, fa_ok, face_a, vert_a = NO_AXIS, NO_AXIS, -1, -1
+        fb_all, fb_ok, face_b, vert_b = NO_AXIS, NO_AXIS, -1, -1
+        r_ba, ha, hb = ti.math.mat3(0.0), vec3(0.0), vec3(0.0)
+        if boxes:  # closed forms of the same queries (box_sat.py)
+            fa_all, fa_ok, face_a, vert_a, fb_all, fb_ok, face_b, vert_b, r_ba, ha, hb = box_face_queries(
+                pool, pa, pb, q_ba, p_ba)
+        else:
+            fa_all, fa_ok, face_a, vert_a = face_query_a(pool, pa, pb, q_ba, p_ba, tri, n_tri)
+            fb_all, fb_ok, face_b, vert_b = face_query_b(pool, pa, pb, q_ba, p_ba, tri)
         best_all = ti.max(fa_all, fb_all)
         e_ok, edge_a, edge_b, axis = NO_AXIS, -1, -1, vec3(0.0, 0.0, 1.0)
         if best_all < margin:  # a face already separates them: skip the costly edge pairs
-            if tri:  # edges of a triangle only prove apartness, never give the normal
+            if boxes:
+                e_s, ea_s, eb_s, ax_s = box_edge_query(r_ba, ha, hb, p_ba)
+                best_all = ti.max(best_all, e_s)
+                e_ok, edge_a, edge_b, axis = e_s, ea_s, eb_s, ax_s
+            elif tri:  # edges of a triangle only prove apartness, never give the normal
                 best_all = ti.max(best_all, edge_query_triangle(pool, pa, pb, q_ba, p_ba, n_tri))
             else:
                 e_s, ea_s, eb_s, ax_s = edge_query_solid(pool, pa, pb, q_ba, p_ba)

@@ -23,7 +23,10 @@ Per body, ``scale`` multiplies inverse mass and inertia inside a block and
   1/omega instead of each body's own count n_b;
 * warm start: scale = 1, weight = 1 (plain sum of last step's impulses). After the
   first substep the warm start rides on the previous substep's last relax sweep
-  (``sweep_blocks``, ``then_warm``): the same sums, one pass over the blocks fewer.
+  (``sweep_blocks``, ``then_warm``): the impulses are applied once more to the block's
+  velocity copies with the scaled responses, which the weight turns back into full-mass
+  changes (scale x weight = 1 in both Jacobi modes); one pass over the blocks fewer, and
+  no per-point trip through the body's inertia.
 """
 
 
@@ -83,8 +86,8 @@ def n_blocks(c: ti.template(), kind: ti.template()) -> ti.i32:
     return n
 
 
-@ti.kernel
-def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+@ti.func
+def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
                     mode: ti.template(), omega: ti.f32):
     nb = bodies.count[None]
     nk = n_blocks(c, kind)
@@ -120,6 +123,12 @@ def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), k
             s.weight[i] = omega
 
 
+@ti.kernel
+def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+                    mode: ti.template(), omega: ti.f32):
+    build_adjacency_loops(s, c, bodies, kind, mode, omega)
+
+
 @ti.func
 def gather_slots(s: ti.template(), bodies: ti.template(), dv_extra: vec3, active: ti.i32):
     """Each dynamic body adds its slots in their fixed order, then ``dv_extra`` (gravity of
@@ -152,6 +161,22 @@ def _warm_delta(rows: ti.template(), c: ti.template(), bodies: ti.template(), a:
 
 
 @ti.func
+def _apply_accumulated(rows: ti.template(), c: ti.template(), q: ti.i32, va: vec3, wa: vec3, vb: vec3, wb: vec3):
+    """Point q's accumulated impulses applied to velocity copies with the schedule's scaled
+    responses (rows.prepare_response)."""
+    lam = rows.lam[q]
+    imp = point_impulse(rows, c, q)
+    ra_ = rows.resp_a[q]
+    rb_ = rows.resp_b[q]
+    dw_a = vec3(0.0)
+    dw_b = vec3(0.0)
+    for e in ti.static(range(3)):
+        dw_a += vec3(ra_[e, 0], ra_[e, 1], ra_[e, 2]) * lam[e]
+        dw_b += vec3(rb_[e, 0], rb_[e, 1], rb_[e, 2]) * lam[e]
+    return va - rows.lin_a[q] * imp, wa - dw_a, vb + rows.lin_b[q] * imp, wb + dw_b
+
+
+@ti.func
 def warm_start_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                       kind: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
     """Gravity, then last step's matched impulses with the full masses (method.md 1.10):
@@ -175,9 +200,8 @@ def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
 
     ``then_warm`` (the last relax sweep of a substep that has a successor): the block's
     impulses are final for this substep, so its slots also carry the next substep's warm
-    start, and the gather adds the next substep's gravity. Sums in the same slots, the same
-    arithmetic as a separate gravity pass and warm-start pass, one block pass and two body
-    passes fewer per substep."""
+    start, and the gather adds the next substep's gravity: one block pass and two body
+    passes fewer per substep than a separate gravity pass and warm-start pass."""
     for k in range(s.block_count[None]):
         start, count, a, b = block_range(c, k, kind)
         va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
@@ -185,16 +209,17 @@ def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
         va, wa, vb, wb = va0, wa0, vb0, wb0
         for q in range(start, start + count):
             va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
+        if then_warm:
+            # the next substep's warm start, applied once more to the copies with the scaled
+            # responses: scale x weight = 1 for every Jacobi-family body (module docstring),
+            # so after the weight this is the full-mass warm start of ``_warm_delta``, read
+            # from the precomputed rows instead of rebuilt through each body's inertia
+            for q in range(start, start + count):
+                va, wa, vb, wb = _apply_accumulated(rows, c, q, va, wa, vb, wb)
         dva = (va - va0) * s.weight[a]
         dwa = (wa - wa0) * s.weight[a]
         dvb = (vb - vb0) * s.weight[b]
         dwb = (wb - wb0) * s.weight[b]
-        if then_warm:
-            wva, wwa, wvb, wwb = _warm_delta(rows, c, bodies, a, b, start, count)
-            dva += wva
-            dwa += wwa
-            dvb += wvb
-            dwb += wwb
         s.slot_dv[2 * k] = dva
         s.slot_dw[2 * k] = dwa
         s.slot_dv[2 * k + 1] = dvb

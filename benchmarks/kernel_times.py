@@ -1,0 +1,96 @@
+"""Milliseconds per step of every kernel a step launches, on a settled scene.
+
+    python benchmarks/kernel_times.py [--scene pile_1000] [--solver mass-splitting] [--iterations 15]
+                                      [--settle 300] [--steps 30]
+
+Each kernel that ``World.step`` launches (the fused set-up kernels of step_kernels.py,
+the iteration loop, and the per-stage kernels where they still run) is wrapped with a
+device sync before and after, so its time is its own. The syncs cost a little: compare
+the sum with the synced wall time, and the unsynced ms/step printed last. Works on the
+tree it is run from (so an older tree can be timed with the same script, as in
+docs/bench.md "Second pass").
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import time
+
+import taichi as ti
+
+from sandbox import Scene, World
+
+WRAPPED = {
+    "sandbox.step_kernels": ["begin_and_collide", "prepare_step", "finish_step"],
+    "sandbox.broadphase": ["build_dynamic_grid", "find_pairs"],
+    "sandbox.contacts": ["collide_pairs"],
+    "sandbox.persistence": ["match_contacts", "store_contacts"],
+    "sandbox.bodies": ["update_world_inertia", "save_good_state"],
+    "sandbox.integrate": ["check_velocities"],
+    "sandbox.solvers.rows": ["prepare_rows", "prepare_response"],
+    "sandbox.solvers.blocks": ["build_adjacency"],
+    "sandbox.solvers.substep": ["iterate_in_order"],
+}
+
+
+def main() -> None:
+    import importlib
+
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scene", default="pile_1000")
+    ap.add_argument("--solver", default="mass-splitting")
+    ap.add_argument("--iterations", type=int, default=15)
+    ap.add_argument("--settle", type=int, default=300)
+    ap.add_argument("--steps", type=int, default=30)
+    a = ap.parse_args()
+    total = collections.defaultdict(float)
+    timing = [False]
+
+    def wrap(mod, name):
+        f = getattr(mod, name)
+
+        def timed(*args, **kw):
+            if not timing[0]:
+                return f(*args, **kw)
+            ti.sync()
+            t = time.perf_counter()
+            out = f(*args, **kw)
+            ti.sync()
+            total[name] += time.perf_counter() - t
+            return out
+
+        setattr(mod, name, timed)
+
+    for module, names in WRAPPED.items():
+        try:
+            mod = importlib.import_module(module)
+        except ImportError:  # an older tree
+            continue
+        for name in names:
+            if hasattr(mod, name):
+                wrap(mod, name)
+    world = World(Scene.load(f"scenes/{a.scene}.toml"), solver=a.solver, iterations=a.iterations, arch="cpu")
+    world.step(a.settle)
+    b = world.buf
+    print(f"{a.scene} {a.solver} {a.iterations} iterations, after {a.settle} steps: pairs {b.bp.pair_total[None]}, "
+          f"contact points {b.contacts.count[None]}, manifolds {b.contacts.manifold_count[None]}")
+    timing[0] = True
+    ti.sync()
+    t = time.perf_counter()
+    world.step(a.steps)
+    ti.sync()
+    wall = time.perf_counter() - t
+    timing[0] = False
+    for name, s in sorted(total.items(), key=lambda kv: -kv[1]):
+        print(f"  {name:22s} {1e3 * s / a.steps:7.3f} ms")
+    print(f"  {'sum':22s} {1e3 * sum(total.values()) / a.steps:7.3f} ms   wall (synced) {1e3 * wall / a.steps:7.3f} ms")
+    ti.sync()
+    t = time.perf_counter()
+    world.step(a.steps)
+    ti.sync()
+    print(f"  unsynced {1e3 * (time.perf_counter() - t) / a.steps:.3f} ms/step")
+
+
+if __name__ == "__main__":
+    main()

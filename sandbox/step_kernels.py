@@ -1,0 +1,54 @@
+"""The once-per-step stages fused into three kernel launches (CPU launch overhead, issue #3).
+
+A step's set-up is a dozen small kernels (save state, world inertia, grid, pairs,
+narrowphase, rows, warm-start matching, adjacency, responses, velocity check, contact
+store), each a launch of ~50 us of Python and runtime, and each parallel loop waits for
+both worker threads. Every stage's loops are written once as a ``ti.func`` (``*_loops``,
+next to its kernel); here they are chained at the top level of one kernel each, so every
+loop stays a parallel loop run in the same order as the separate launches: the same bits.
+``World`` uses these when the profiler is off (the profiler times the separate kernels).
+"""
+
+import taichi as ti
+
+from .bodies import save_good_state_loops, update_world_inertia_loops
+from .broadphase import build_dynamic_grid_loops, find_pairs_loops
+from .contacts import collide_pairs_loops
+from .integrate import BIG, check_velocities_loops
+from .persistence import match_contacts_loops, store_contacts_loops
+from .solvers.blocks import build_adjacency_loops
+from .solvers.rows import prepare_response_loops, prepare_rows_loops
+
+
+@ti.kernel
+def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template(), shapes: ti.template(),
+                      c: ti.template(), pool: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
+                      kinds: ti.template()):
+    """Save the good state, clear the error flags, world inertias, broadphase, narrowphase."""
+    err.flags[None] = 0
+    err.body[None] = BIG
+    save_good_state_loops(bodies)
+    update_world_inertia_loops(bodies)
+    build_dynamic_grid_loops(bp, shapes, bodies, margin, h, err)
+    find_pairs_loops(bp, shapes)
+    collide_pairs_loops(c, bp, shapes, bodies, pool, margin, slop, h, kinds)
+
+
+@ti.kernel
+def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), hist: ti.template(),
+                 shapes: ti.template(), blk: ti.template(), inv_h: ti.f32, bias_rate: ti.f32, softness: ti.f32,
+                 max_push: ti.f32, restitution_threshold: ti.f32, match_distance: ti.f32, warm_factor: ti.f32,
+                 kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template()):
+    """Rows, warm-start matching, the schedule's adjacency and the row responses."""
+    prepare_rows_loops(rows, c, bodies, inv_h, bias_rate, softness, max_push, restitution_threshold)
+    match_contacts_loops(hist, c, rows, bodies, shapes, match_distance, warm_factor)
+    build_adjacency_loops(blk, c, bodies, kind, mode, omega)
+    prepare_response_loops(rows, c, bodies, blk.scale, split)
+
+
+@ti.kernel
+def finish_step(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
+                shapes: ti.template(), err: ti.template(), substeps: ti.i32):
+    """Velocity check and the contact store for the next step's warm start."""
+    check_velocities_loops(bodies, err)
+    store_contacts_loops(hist, c, rows, bodies, shapes, substeps)
