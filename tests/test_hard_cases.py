@@ -35,7 +35,7 @@ KNOWN_FAILURES = {
     ("stack_20", "pgs-colored@4"): "top drifts ~26 mm at 4 iterations",
     # serial PGS's order asymmetry tips the column; how far in 10 s is rounding luck: 1 um
     # perturbations of the start give 9.1-14.4 mm before the precomputed row responses and
-    # 7.7-14.4 mm after (the unperturbed stack: 9.1 mm before, 13.4 mm now; criterion 10 mm)
+    # 7.7-14.4 mm after (the unperturbed stack: 9.1 mm, then 13.4 mm, now 11.8 mm; criterion 10 mm)
     ("stack_20", "pgs@15"): "top drifts 11.8 mm (rounding-sensitive: 7.7-14.4 mm under 1 um perturbations)",
     ("deep_overlap_30pct", "block-mass-splitting@4"): "peak separation speed ~5.3 m/s at 4 iterations",
     ("resting_block_27", "mass-splitting@4"): "rings at 4 iterations (KE ~1e3 J)",
