@@ -47,7 +47,7 @@ class ControlPanel:
         self.recordings_dir = Path(recordings_dir)
         self.selected: int | None = None
         self.color_mode = "shape"
-        self._drops = 0
+        self._seeds = 0  # seeds of debris drops and fractures: a session is repeatable
         self._render_fps = 0.0
         self._shown: dict = {}  # what the widgets show, to skip redundant updates
         self._local = threading.local()
@@ -222,8 +222,8 @@ class ControlPanel:
     @_user_action
     def _on_drop(self, event) -> None:
         count, mix = int(self.debris_count.value), self.debris_mix.value
-        self._drops += 1
-        seed = self._drops
+        self._seeds += 1
+        seed = self._seeds
 
         def run(s):
             bodies = debris_bodies(s.latest(), count, mix, seed)
@@ -237,8 +237,8 @@ class ControlPanel:
         if body is None:
             return
         pieces, burst = int(self.pieces.value), float(self.burst.value)
-        self._drops += 1
-        seed = self._drops
+        self._seeds += 1
+        seed = self._seeds
 
         def run(s):
             mass = s.world.body_specs[body].mass
