@@ -17,6 +17,7 @@ import json
 import numpy as np
 
 from sandbox import Scene, World
+from sandbox.scene.library import resolve_scene
 
 RUNS = [
     ("pgs", {}, "PGS (serial, fixed order)"),
@@ -28,7 +29,7 @@ RUNS = [
 
 
 def kinetic_energy_series(solver: str, options: dict, iterations: int, frames: int) -> np.ndarray:
-    world = World(Scene.load("scenes/pyramid_20.toml"), solver=solver, iterations=iterations, arch="cpu", **options)
+    world = World(Scene.load(resolve_scene("pyramid_20")), solver=solver, iterations=iterations, arch="cpu", **options)
     ke = np.empty(frames)
     for f in range(frames):
         world.step(1)

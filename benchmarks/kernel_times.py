@@ -20,6 +20,7 @@ import time
 import taichi as ti
 
 from sandbox import Scene, World
+from sandbox.scene.library import resolve_scene
 
 WRAPPED = {
     "sandbox.step_kernels": ["begin_and_collide", "prepare_step", "finish_step"],
@@ -70,7 +71,7 @@ def main() -> None:
         for name in names:
             if hasattr(mod, name):
                 wrap(mod, name)
-    world = World(Scene.load(f"scenes/{a.scene}.toml"), solver=a.solver, iterations=a.iterations, arch="cpu")
+    world = World(Scene.load(resolve_scene(a.scene)), solver=a.solver, iterations=a.iterations, arch="cpu")
     world.step(a.settle)
     b = world.buf
     print(f"{a.scene} {a.solver} {a.iterations} iterations, after {a.settle} steps: pairs {b.bp.pair_total[None]}, "

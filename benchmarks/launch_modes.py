@@ -16,6 +16,7 @@ import time
 import numpy as np
 
 from sandbox import Scene, World
+from sandbox.scene.library import resolve_scene
 
 
 def main() -> None:
@@ -29,7 +30,7 @@ def main() -> None:
     import taichi as ti
 
     modes = a.modes.split(",")
-    world = World(Scene.load(f"scenes/{a.scene}.toml"), solver=a.solver, iterations=a.iterations, arch="cpu")
+    world = World(Scene.load(resolve_scene(a.scene)), solver=a.solver, iterations=a.iterations, arch="cpu")
     world.step(a.settle)
     for m in modes:  # compile every mode outside the timings
         world.settings = world.settings.replace(iteration_launch=m)

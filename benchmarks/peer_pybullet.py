@@ -21,6 +21,8 @@ import time
 import numpy as np
 
 from sandbox import Scene, World
+from sandbox.scene.library import resolve_scene
+from sandbox.bench import pybullet_version
 from sandbox.peers import pybullet_ke, pybullet_world
 
 
@@ -32,7 +34,7 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=60)
     ap.add_argument("--solvers", default="pgs,mass-splitting,block-mass-splitting")
     a = ap.parse_args()
-    scene = Scene.load(f"scenes/{a.scene}.toml")
+    scene = Scene.load(resolve_scene(a.scene))
     pb, cid, ids, masses, inertias = pybullet_world(scene, a.iterations)
     for _ in range(a.settle):
         pb.stepSimulation(physicsClientId=cid)
@@ -45,7 +47,7 @@ def main() -> None:
         pb.stepSimulation(physicsClientId=cid)
         ke.append(pybullet_ke(pb, cid, ids, masses, inertias))
     print(f"{a.scene}, {a.iterations} iterations, settle {a.settle}, timed {a.steps} steps")
-    print(f"{'pybullet 3.2.7':24s} {pb_rate:8.1f} steps/s   KE(last 60) {np.mean(ke):.3e} J")
+    print(f"{'pybullet ' + pybullet_version():24s} {pb_rate:8.1f} steps/s   KE(last 60) {np.mean(ke):.3e} J")
     import taichi as ti
 
     for solver in a.solvers.split(","):

@@ -17,10 +17,11 @@ import platform
 import time
 
 from sandbox import SOLVERS, Scene, World
+from sandbox.scene.library import resolve_scene
 
 
 def bench(scene_name: str, solver: str, iterations: int, settle: int, steps: int, arch: str) -> dict:
-    scene = Scene.load(f"scenes/{scene_name}.toml")
+    scene = Scene.load(resolve_scene(scene_name))
     t0 = time.perf_counter()
     world = World(scene, solver=solver, iterations=iterations, arch=arch, profile=False)
     world.step(1)

@@ -541,6 +541,29 @@ ERROR_PANELS = (
 )
 
 
+def _row_label(r: dict) -> str:
+    """A result row's curve label: the solver, with its options when it has any."""
+    return r["solver"] + (f" [{r['options']}]" if r["options"] else "")
+
+
+def _line_style(label: str) -> dict:
+    return dict(ls="--", marker="s") if label == "pybullet" else dict(ls="-", marker="o")
+
+
+def _finish_axes(ax, legend_size: int) -> None:
+    ax.grid(True, which="both", alpha=0.3)
+    if ax.lines:
+        ax.legend(fontsize=legend_size)
+        _tidy_log_axes(ax)
+
+
+def _save(plt, fig, path, title: str) -> None:
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
 def _tidy_log_axes(ax) -> None:
     """Plain number labels on log axes; minor labels only where an axis spans less than a decade."""
     from matplotlib.ticker import FuncFormatter, NullFormatter
@@ -560,7 +583,7 @@ def _curves(rows, scene):
     out: dict = {}
     for r in rows:
         if r["scene"] == scene and r["status"] == "ok":
-            out.setdefault(r["solver"] + (f" [{r['options']}]" if r["options"] else ""), []).append(r)
+            out.setdefault(_row_label(r), []).append(r)
     for rs in out.values():
         rs.sort(key=lambda r: r["iterations"])
     return out
@@ -575,7 +598,7 @@ def plot_pareto(plt, rows, scene, path, meta):
             if not pts:
                 continue
             x, y, k = zip(*pts)
-            style = dict(ls="--", marker="s") if label == "pybullet" else dict(ls="-", marker="o")
+            style = _line_style(label)
             ax.plot(x, y, label=label, ms=4, lw=1.2, **style)
             for xi, yi, ki in pts:
                 ax.annotate(str(ki), (xi, yi), textcoords="offset points", xytext=(3, 3), fontsize=7)
@@ -585,15 +608,9 @@ def plot_pareto(plt, rows, scene, path, meta):
         zeros = {label: [str(r["iterations"]) for r in rs if r[key] == 0] for label, rs in _curves(rows, scene).items()}
         zeros = "; ".join(f"{label} x{','.join(ks)}" for label, ks in zeros.items() if ks)
         ax.set_title(title + (f"\nexactly 0, not drawn: {zeros}" if zeros else ""), fontsize=9)
-        ax.grid(True, which="both", alpha=0.3)
-        if ax.lines:
-            ax.legend(fontsize=7)
-            _tidy_log_axes(ax)
-    fig.suptitle(f"{scene}: error vs cost, one point per iteration count (label) - lower left is better\n"
-                 f"{meta['machine'].get('cpu', '')}, arch {meta['arch']}", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+        _finish_axes(ax, legend_size=7)
+    _save(plt, fig, path, f"{scene}: error vs cost, one point per iteration count (label) - lower left is better\n"
+          f"{meta['machine'].get('cpu', '')}, arch {meta['arch']}")
 
 
 def plot_jitter(plt, rows, series, scene, path, settle):
@@ -608,7 +625,7 @@ def plot_jitter(plt, rows, series, scene, path, settle):
             ke = np.asarray([np.nan if v is None else v for v in series.get(_series_key(r), [])], dtype=float)
             if len(ke) == 0:
                 continue
-            label = r["solver"] + (f" [{r['options']}]" if r["options"] else "")
+            label = _row_label(r)
             ax.semilogy(np.arange(1, len(ke) + 1), np.maximum(ke, 1e-12), lw=0.9, label=label,
                         ls="--" if r["engine"] == "pybullet" else "-")
         ax.axvline(settle, color="k", lw=0.6, alpha=0.5)
@@ -619,11 +636,7 @@ def plot_jitter(plt, rows, series, scene, path, settle):
     for ax in list(axes.flat)[len(ks):]:
         ax.set_visible(False)
     axes.flat[0].legend(fontsize=7)
-    fig.suptitle(f"{scene}: kinetic energy vs frame (no sleeping, no damping); error window right of the line",
-                 fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    _save(plt, fig, path, f"{scene}: kinetic energy vs frame (no sleeping, no damping); error window right of the line")
 
 
 def plot_convergence(plt, conv, scene, path):
@@ -641,14 +654,8 @@ def plot_convergence(plt, conv, scene, path):
     b.set_xlabel("solve time [ms] (sweeps x ms/sweep)")
     for ax in (a, b):
         ax.set_ylabel("RMS residual, biased problem [m/s]")
-        ax.grid(True, which="both", alpha=0.3)
-        if ax.lines:
-            ax.legend(fontsize=8)
-            _tidy_log_axes(ax)
-    fig.suptitle(f"{scene}: convergence on one frozen step of the settled scene", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+        _finish_axes(ax, legend_size=8)
+    _save(plt, fig, path, f"{scene}: convergence on one frozen step of the settled scene")
 
 
 def plot_scaling(plt, rows, path, meta):
@@ -656,10 +663,10 @@ def plot_scaling(plt, rows, path, meta):
     groups: dict = {}
     for r in rows:
         if r["status"] == "ok" and r["ms_per_step"]:
-            groups.setdefault(r["solver"] + (f" [{r['options']}]" if r["options"] else ""), []).append(r)
+            groups.setdefault(_row_label(r), []).append(r)
     for label, rs in groups.items():
         rs.sort(key=lambda r: r["bodies"])
-        style = dict(ls="--", marker="s") if label == "pybullet" else dict(ls="-", marker="o")
+        style = _line_style(label)
         a.loglog([r["bodies"] for r in rs], [r["ms_per_step"] for r in rs], label=label, ms=4, **style)
         pts = [(r["contacts"], r["ms_per_step"]) for r in rs if r["contacts"]]
         if pts:
@@ -668,15 +675,9 @@ def plot_scaling(plt, rows, path, meta):
     b.set_xlabel("contact points (after the settle)")
     for ax in (a, b):
         ax.set_ylabel("ms / step")
-        ax.grid(True, which="both", alpha=0.3)
-        if ax.lines:
-            ax.legend(fontsize=8)
-            _tidy_log_axes(ax)
-    fig.suptitle(f"scaling on grid piles, {meta['scaling_iterations']} iterations, arch {meta['arch']}, "
-                 f"{meta['machine'].get('cpu', '')}", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+        _finish_axes(ax, legend_size=8)
+    _save(plt, fig, path, f"scaling on grid piles, {meta['scaling_iterations']} iterations, arch {meta['arch']}, "
+          f"{meta['machine'].get('cpu', '')}")
 
 
 def write_plots(doc: dict, out) -> list[Path]:

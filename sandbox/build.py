@@ -231,3 +231,4 @@ def upload(host: HostWorld, buffers: BufferSet, margin: float) -> None:
     buffers.bp.cell_size[None] = host.cell_size
     compute_all_aabbs(buffers.bp, buffers.shapes, buffers.bodies, margin)
     clear_history(buffers.history)
+    buffers.errors.clear()  # a pooled buffer may carry the flags of its previous world

@@ -16,6 +16,8 @@ from typing import Callable
 
 import numpy as np
 
+from .scene.library import SCENES_DIR
+
 G = 9.81
 
 
@@ -142,7 +144,6 @@ def resting_pile() -> Case:
                 "27 unit boxes (1000 kg) resting as a 3 x 3 x 3 block, 5 s: at rest (mean KE of the last second < 0.01 J)")
 
 
-SCENES = Path(__file__).resolve().parent.parent / "scenes"
 
 
 SETTLE_STEPS = 60
@@ -159,13 +160,13 @@ def _standing(tolerance: float):
 
 
 def friction_arch() -> Case:
-    return Case("friction_arch", SCENES / "friction_arch.toml", 600, _standing(0.01),
+    return Case("friction_arch", SCENES_DIR / "friction_arch.toml", 600, _standing(0.01),
                 "scenes/friction_arch.toml (17 hull voussoirs, mu 0.6, loaded), 10 s: after the first second "
                 "(the load settles onto the keystone) no body moves > 1 cm")
 
 
 def leaning_planks() -> Case:
-    return Case("leaning_planks", SCENES / "leaning_planks.toml", 600, _standing(0.005),
+    return Case("leaning_planks", SCENES_DIR / "leaning_planks.toml", 600, _standing(0.005),
                 "scenes/leaning_planks.toml (card house, mu 0.7), 10 s: after the first second no plank moves > 5 mm")
 
 
@@ -193,8 +194,9 @@ def run_case(case: Case, solver: str, iterations: int, steps: int | None = None)
             run.ke.append(m["kinetic_energy"])
             run.max_penetration.append(m["max_penetration"])
             run.max_speed.append(float(np.linalg.norm(st["linear_velocity"], axis=1).max()))
+        run.final = world.state()
     except SimulationError as exc:
         return False, f"stopped: {exc}"
-    run.final = world.state()
-    world.close()
+    finally:
+        world.close()  # a stopped run gives its buffers back too
     return case.judge(run)

@@ -59,6 +59,18 @@ def _decode(obj):
     return obj
 
 
+def _frame(world) -> np.ndarray:
+    """What a recording stores of a step: (N, 7) float32, position then orientation (w x y z)."""
+    st = world.state()
+    return np.concatenate([st["position"], st["orientation"]], axis=1).astype(np.float32)
+
+
+def _apply_due(world, events: list) -> None:
+    """Apply (and pop) the logged (step, event) pairs due at the world's current step."""
+    while events and events[0][0] <= world.step_count:
+        world.apply_event(events.pop(0)[1])
+
+
 class Recorder:
     """Collects frames of a world; ``save`` writes the file. ``scene_path`` is the TOML the
     world was loaded from (its text is stored, so the recording stands alone)."""
@@ -79,8 +91,7 @@ class Recorder:
         return len(self._frames)
 
     def capture(self) -> None:
-        st = self.world.state()
-        self._frames.append(np.concatenate([st["position"], st["orientation"]], axis=1).astype(np.float32))
+        self._frames.append(_frame(self.world))
 
     def save(self, path) -> int:
         header = {
@@ -172,19 +183,16 @@ def replay(path, arch: str = "cpu", on_frame=None) -> dict:
     before_start = events[: header.get("start_events", 0)]
     events = events[len(before_start):]
     while world.step_count < header["start_step"]:
-        while before_start and before_start[0][0] <= world.step_count:
-            world.apply_event(before_start.pop(0)[1])
+        _apply_due(world, before_start)
         world.step(1)
     for _, event in before_start:
         world.apply_event(event)
     first, worst = None, 0.0
     for k, recorded in enumerate(frames):
         if k > 0:
-            while events and events[0][0] <= world.step_count:
-                world.apply_event(events.pop(0)[1])
+            _apply_due(world, events)
             world.step(1)
-        st = world.state()
-        now = np.concatenate([st["position"], st["orientation"]], axis=1).astype(np.float32)
+        now = _frame(world)
         if now.shape != recorded.shape:
             first = k if first is None else first
             worst = np.inf

@@ -480,7 +480,7 @@ class World:
             from .persistence import clear_history
 
             from .broadphase import MAX_SPAN_CELLS
-            from .integrate import ERR_BOUNDS, ERR_POSE, ERR_VELOCITY
+            from .integrate import ERR_POSE, ERR_VELOCITY
 
             body = int(b.errors.body[None])
             name = self.body_name(body)
@@ -587,9 +587,7 @@ class World:
             o = self.solver_options
             col = self.buf.coloring
             pgs.color_manifolds(col, c, bodies, int(o["shuffle"]), int(o["seed"]), self.step_count)
-            if self._iteration_launch() != "one":  # the colour ranges drive the launches
-                self._color_starts = col.color_start.to_numpy()
-                self._color_count = int(col.color_count[None])
+        self._color_starts = None  # read from the device by the first host-driven sweep that needs them
 
     def _warm_start(self, gravity, h: float) -> None:
         from .solvers import blocks
@@ -604,9 +602,13 @@ class World:
         kind, b, rows, c, bodies = self._schedule()
         fr = self.friction
         if self.solver == "pgs":
-            pgs.pgs_serial(rows, c, bodies, 1, mode, fr)
+            pgs.pgs_serial(rows, c, bodies, mode, fr)
         elif self.solver == "pgs-colored":
-            col, starts, overflow = self.buf.coloring, self._color_starts, pgs.MAX_COLORS
+            col, overflow = self.buf.coloring, pgs.MAX_COLORS
+            if self._color_starts is None:  # one launch per colour: the ranges come to the host once a step
+                self._color_starts = pgs.color_ranges(col)
+                self._color_count = int(col.color_count[None])
+            starts = self._color_starts
             for k in range(self._color_count):
                 pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]), mode, fr)
             if starts[overflow + 1] > starts[overflow]:

@@ -47,3 +47,14 @@ def test_runaway_body_stops_the_step_before_the_broadphase_overflows():
     world.set_velocity([1], angular=[0.0, 0.0, 0.0])
     world.step(5)  # and the world goes on
     assert np.all(np.isfinite(world.state()["position"]))
+
+
+def test_colored_pgs_with_restitution_steps_on_the_cpu():
+    """The restitution pass sweeps colour by colour even when the iterations run in one launch:
+    it reads the colour ranges itself (a bouncing box, pgs-colored, CPU)."""
+    bouncy = box_body([0, 0, 1.5], restitution=0.5)
+    scene = Scene.from_dict(scene_dict([bouncy], solver="pgs-colored", iterations=8))
+    world = World(scene, arch="cpu")
+    world.step(60)
+    z = world.state()["position"][0, 2]
+    assert np.isfinite(z) and 0.45 < z < 1.6

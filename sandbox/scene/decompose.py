@@ -248,7 +248,7 @@ def _postprocess(mesh, raw: list[np.ndarray], options: DecomposeOptions) -> Deco
     hulls = []
     for i, points in enumerate(raw):
         try:
-            hulls.append(_limited_hull(points, options.max_hull_vertices))
+            hulls.append(usable_hull(points, max_vertices=options.max_hull_vertices))
         except HullError as exc:
             notes.append(f"CoACD hull {i} dropped: {exc}")
     if not hulls:
@@ -274,11 +274,6 @@ def _postprocess(mesh, raw: list[np.ndarray], options: DecomposeOptions) -> Deco
                          float(mesh.volume), repaired_pairs=repaired, notes=notes)
 
 
-def _limited_hull(points, max_vertices: int) -> np.ndarray:
-    """Hull vertices of ``points`` the engine accepts, at most ``max_vertices`` (``hull.usable_hull``)."""
-    return usable_hull(points, max_vertices=max_vertices)
-
-
 def _separate(hulls: list, tolerance: float, max_vertices: int) -> tuple[list, int]:
     """Cut every pair of hulls overlapping by more than ``tolerance`` [m] apart (step 3)."""
     hulls = list(hulls)
@@ -299,7 +294,7 @@ def _separate(hulls: list, tolerance: float, max_vertices: int) -> tuple[list, i
             a, b = clip_convex(hulls[i], axis, mid), clip_convex(hulls[j], -axis, -mid)
             for k, cut in ((i, a), (j, b)):
                 try:
-                    hulls[k] = None if cut is None else _limited_hull(cut, max_vertices)
+                    hulls[k] = None if cut is None else usable_hull(cut, max_vertices=max_vertices)
                 except (HullError, GeometryError):
                     hulls[k] = None
                 if hulls[k] is not None:

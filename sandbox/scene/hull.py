@@ -81,27 +81,8 @@ def farthest_point_subset(points: np.ndarray, count: int) -> np.ndarray:
     return np.asarray(sorted(chosen), dtype=np.int64)
 
 
-def reduce_to_hull(points, *, max_vertices: int = MAX_HULL_VERTICES) -> tuple[np.ndarray, int]:
-    """Hull of a (mesh) point set, simplified to at most ``max_vertices`` vertices.
-
-    Returns (hull vertices, number of hull vertices before simplification).
-    """
-    from scipy.spatial import ConvexHull, QhullError
-
-    pts = _check_points(points)
-    try:
-        verts = pts[ConvexHull(pts).vertices]
-    except (QhullError, ValueError) as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise HullError(f"hull is degenerate (flat or collinear points): {first}") from None
-    original = len(verts)
-    if original > max_vertices:
-        verts = verts[farthest_point_subset(verts, max_vertices)]
-    return hull_vertices(verts, max_vertices=max_vertices), original
-
-
-def usable_hull(points, *, max_vertices: int = MAX_HULL_VERTICES) -> np.ndarray:
-    """Vertices of conv(points), reduced and cleaned until ``hull_vertices`` accepts them (module docstring)."""
+def _reduced_points(points, max_vertices: int) -> np.ndarray:
+    """The vertices of conv(points), thinned to at most ``max_vertices`` by farthest-point sampling."""
     from scipy.spatial import ConvexHull, QhullError
 
     pts = _check_points(points)
@@ -112,6 +93,19 @@ def usable_hull(points, *, max_vertices: int = MAX_HULL_VERTICES) -> np.ndarray:
         raise HullError(f"hull is degenerate (flat or collinear points): {first}") from None
     if len(pts) > max_vertices:
         pts = pts[farthest_point_subset(pts, max_vertices)]
+    return pts
+
+
+def reduce_to_hull(points, *, max_vertices: int = MAX_HULL_VERTICES) -> np.ndarray:
+    """Hull vertices of a (mesh) point set, simplified to at most ``max_vertices`` vertices."""
+    return hull_vertices(_reduced_points(points, max_vertices), max_vertices=max_vertices)
+
+
+def usable_hull(points, *, max_vertices: int = MAX_HULL_VERTICES) -> np.ndarray:
+    """Vertices of conv(points), reduced and cleaned until ``hull_vertices`` accepts them (module docstring)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    pts = _reduced_points(points, max_vertices)
     extent = float(np.ptp(pts, axis=0).max())
     last = None
     for level in (None, 1e-6, 1e-5, 1e-4, 1e-3):

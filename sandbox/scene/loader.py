@@ -67,8 +67,8 @@ DEFAULT_FRICTION = 0.5
 DEFAULT_RESTITUTION = 0.0
 MAX_BODIES = 1_000_000
 """Sanity limit on the bodies of one scene (catches a typo such as count = 1e9 before memory runs out)."""
-MAX_HEIGHTFIELD_CELLS = 2048
 MAX_ITERATIONS = timeline.MAX_ITERATIONS
+MAX_HEIGHTFIELD_CELLS = 2048
 """Per axis; 2048 x 2048 cells is 8.4 million triangles."""
 
 TOP_KEYS = ("description", "world", "solver", "static", "body", "generate", "event", "effects")
@@ -238,7 +238,7 @@ def _read_world(r: Reader | None) -> WorldSpec:
         gravity=r.vector("gravity", 3, (0.0, 0.0, -9.81)),
         dt=r.real("dt", 1.0 / 60.0, positive=True),
         substeps=r.integer("substeps", 1, minimum=1, maximum=10_000),
-        contact_hertz=r.real("contact_hertz", None, positive=True) if "contact_hertz" in r.data else None,
+        contact_hertz=r.real("contact_hertz", None, positive=True),
         duration=r.real("duration", None, positive=True),
     )
 
@@ -319,7 +319,7 @@ def _read_shape(r: Reader, kind: str) -> ShapeSpec:
                 vertices = hull_vertices(points)
             else:
                 mesh_vertices, _ = _load_mesh_file(r, "path")
-                vertices, _ = reduce_to_hull(mesh_vertices * scale)
+                vertices = reduce_to_hull(mesh_vertices * scale)
         except HullError as exc:
             raise r.error(str(exc), source) from None
     return ShapeSpec("hull", vertices=vertices)
@@ -354,10 +354,10 @@ def _read_solid(r: Reader, *, static_section: bool) -> BodySpec:
     orientation = r.quaternion("orientation")
     static = static_section or r.boolean("static", False)
     r.exclusive("density", "mass", required=False)
-    density = r.real("density", DEFAULT_DENSITY, positive=True) if not static_section else DEFAULT_DENSITY
-    mass = r.real("mass", None, positive=True) if not static_section else None
-    linear_velocity = r.vector("linear_velocity", 3, (0.0, 0.0, 0.0)) if not static_section else np.zeros(3)
-    angular_velocity = r.vector("angular_velocity", 3, (0.0, 0.0, 0.0)) if not static_section else np.zeros(3)
+    density = r.real("density", DEFAULT_DENSITY, positive=True)  # a static section rejected the key already
+    mass = r.real("mass", None, positive=True)
+    linear_velocity = r.vector("linear_velocity", 3, (0.0, 0.0, 0.0))
+    angular_velocity = r.vector("angular_velocity", 3, (0.0, 0.0, 0.0))
     if static and (np.any(linear_velocity) or np.any(angular_velocity)):
         key = "linear_velocity" if np.any(linear_velocity) else "angular_velocity"
         raise r.error("a static body cannot move; remove the velocity or set static = false", key)
@@ -443,7 +443,7 @@ def _read_mesh_body(r: Reader) -> tuple[list[ShapeSpec], "decompose.Decompositio
             raise r.error(f"convex decomposition of {what} failed: {exc} (with decomposition.on_failure = \"hull\" "
                           "the body is kept whole as its convex hull instead)", source) from None
         try:
-            hull, _ = reduce_to_hull(mesh.vertices)
+            hull = reduce_to_hull(mesh.vertices)
         except HullError as hull_exc:
             raise r.error(f"convex decomposition of {what} failed ({exc}), and so did its convex hull ({hull_exc})",
                           source) from None

@@ -166,6 +166,10 @@ class Reader:
         value, given = self._get(key, default)
         if not given:
             return value
+        return self._choice(value, key, choices, what)
+
+    def _choice(self, value, key, choices, what) -> str:
+        """``value`` as a string that is one of ``choices`` (any string when choices is None)."""
         if not isinstance(value, str):
             raise self.error(f"expected a string, got {_kind_of(value)} {_show(value)}", key)
         if choices is not None and value not in choices:
@@ -205,14 +209,9 @@ class Reader:
 
     def string_set(self, key, choices, *, what="value") -> tuple[str, ...]:
         """A list of distinct strings, each one of ``choices`` (may be empty); returned sorted."""
-        items = self.items(key)
         out = []
-        for i, item in enumerate(items):
-            if not isinstance(item, str):
-                raise self.error(f"expected a string, got {_kind_of(item)} {_show(item)}", f"{key}[{i}]")
-            if item not in choices:
-                raise self.error(f"unknown {what} {item!r}; expected one of: {', '.join(choices)}", f"{key}[{i}]")
-            if item in out:
+        for i, item in enumerate(self.items(key)):
+            if self._choice(item, f"{key}[{i}]", choices, what) in out:
                 raise self.error(f"{what} {item!r} is listed twice", f"{key}[{i}]")
             out.append(item)
         return tuple(sorted(out))
@@ -235,14 +234,7 @@ class Reader:
         items = self._list(value, key)
         if not items:
             raise self.error(f"expected a non-empty list of {what}s", key)
-        out = []
-        for i, item in enumerate(items):
-            if not isinstance(item, str):
-                raise self.error(f"expected a string, got {_kind_of(item)} {_show(item)}", f"{key}[{i}]")
-            if item not in choices:
-                raise self.error(f"unknown {what} {item!r}; expected one of: {', '.join(choices)}", f"{key}[{i}]")
-            out.append(item)
-        return out
+        return [self._choice(item, f"{key}[{i}]", choices, what) for i, item in enumerate(items)]
 
     def int_vector(self, key, n: int, default=MISSING, *, minimum=None, maximum=None) -> np.ndarray:
         value, given = self._get(key, default)

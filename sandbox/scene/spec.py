@@ -25,10 +25,6 @@ MAX_PIECES = 64
 """Most pieces one fracture of a convex body may make (each is a new body and a new hull)."""
 
 
-def _vec(x, n=3) -> np.ndarray:
-    return np.asarray(x, dtype=np.float64).reshape(n)
-
-
 @dataclass
 class ShapeSpec:
     kind: str  # "sphere" | "capsule" | "box" | "hull"

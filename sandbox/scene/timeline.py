@@ -44,8 +44,14 @@ from .spec import DEFAULT_PIECES, MAX_PIECES, BodySpec, EventSpec, ShapeSpec
 
 EVENT_KINDS = ("drop", "set_velocity", "impulse", "remove", "solver", "iterations", "gravity", "effects",
                "fracture")
-PUSHING_KINDS = ("set_velocity", "impulse")
-"""Events that move bodies and therefore cannot target static ones."""
+STATIC_REFUSALS = {
+    "set_velocity": lambda kind: (f"static bodies cannot be pushed, so {_article(kind)} {kind} event cannot "
+                                  "target it (make the body dynamic, or remove it instead)"),
+    "impulse": lambda kind: (f"static bodies cannot be pushed, so {_article(kind)} {kind} event cannot "
+                             "target it (make the body dynamic, or remove it instead)"),
+    "fracture": lambda kind: "static bodies cannot be fractured (make the body dynamic)",
+}
+"""Events that cannot target static bodies, and why (the message's tail)."""
 MAX_ITERATIONS = 1_000_000
 
 
@@ -161,11 +167,8 @@ def _replay(events: list[_Parsed], bodies: list[BodySpec], mesh_names: set, drop
             if gid in seen:
                 raise r.error(f"{label} is listed twice (also as bodies[{seen[gid]}])", key)
             seen[gid] = j
-            if ev.kind in PUSHING_KINDS and every[gid].static:
-                raise r.error(f"{label} is static: static bodies cannot be pushed, so {_article(ev.kind)} "
-                              f"{ev.kind} event cannot target it (make the body dynamic, or remove it instead)", key)
-            if ev.kind == "fracture" and every[gid].static:
-                raise r.error(f"{label} is static: static bodies cannot be fractured (make the body dynamic)", key)
+            if ev.kind in STATIC_REFUSALS and every[gid].static:
+                raise r.error(f"{label} is static: {STATIC_REFUSALS[ev.kind](ev.kind)}", key)
             resolved.append(index_of[gid])
         ev.bodies = resolved
         if ev.kind == "fracture":

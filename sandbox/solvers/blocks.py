@@ -58,7 +58,6 @@ class BlockScratch:
         self.slot_dw = ti.Vector.field(3, ti.f32, 2 * bc)
         self.scale = ti.field(ti.f32, nb)
         self.weight = ti.field(ti.f32, nb)
-        self.max_degree = ti.field(ti.i32, ())
         self.scanner = Scanner(nb + 1)
 
 
@@ -108,13 +107,11 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
             s.adj[s.adj_start[a] + ti.atomic_add(s.adj_fill[a], 1)] = 2 * k
         if bodies.inv_mass[b] > 0.0:
             s.adj[s.adj_start[b] + ti.atomic_add(s.adj_fill[b], 1)] = 2 * k + 1
-    s.max_degree[None] = 0
     for i in range(nb):
         e0 = s.adj_start[i]
         e1 = s.adj_start[i + 1]
         sort_range(s.adj, e0, e1)
         deg = ti.max(e1 - e0, 1)
-        ti.atomic_max(s.max_degree[None], e1 - e0)
         if ti.static(mode == MODE_SPLIT):
             s.scale[i] = ti.cast(deg, ti.f32) / omega
             s.weight[i] = omega / deg

@@ -49,12 +49,10 @@ def pgs_sweep(rows: ti.template(), c: ti.template(), bodies: ti.template(), mode
 
 
 @ti.kernel
-def pgs_serial(rows: ti.template(), c: ti.template(), bodies: ti.template(), iterations: ti.i32,
-               mode: ti.template(), friction: ti.template()):
-    ti.loop_config(serialize=True)
-    for _ in range(iterations):
-        for m in range(c.manifold_count[None]):
-            solve_manifold(rows, c, bodies, m, mode, friction)
+def pgs_serial(rows: ti.template(), c: ti.template(), bodies: ti.template(), mode: ti.template(),
+               friction: ti.template()):
+    """``pgs_sweep`` as its own launch (the stage-by-stage path)."""
+    pgs_sweep(rows, c, bodies, mode, friction)
 
 
 @ti.data_oriented

@@ -17,6 +17,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from sandbox.scene.rotations import quat_mul  # noqa: F401  (the tests import it from here)
 import taichi as ti
 
 from sandbox.narrowphase import Manifold, ShapePose, collide
@@ -86,13 +88,6 @@ def quat_axis_angle(axis, angle) -> np.ndarray:
     a = np.asarray(axis, dtype=float)
     a = a / np.linalg.norm(a)
     return np.r_[math.cos(angle / 2), math.sin(angle / 2) * a]
-
-
-def quat_mul(p, q) -> np.ndarray:
-    w1, x1, y1, z1 = p
-    w2, x2, y2, z2 = q
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
 
 
 def quat_to_mat(q) -> np.ndarray:
