@@ -25,8 +25,6 @@ import numpy as np
 
 os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
 
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run"]
 
 
 def grid_scene(n: int):
@@ -40,21 +38,30 @@ def grid_scene(n: int):
     })
 
 
-def fake_snapshot(scene, n: int, frame: int):
-    """Poses of the scene's first ``n`` bodies, moved a little every frame."""
-    bodies = tuple(scene.bodies[:n])
-    pos = np.array([b.position for b in bodies], dtype=np.float32)
-    pos[:, 2] += 0.01 * np.sin(frame * 0.1 + np.arange(n))
-    quat = np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (n, 1))
-    return SimpleNamespace(world_id=1, generation=1, step=frame, positions=pos, orientations=quat,
-                           speeds=np.zeros(n, np.float32), bodies=bodies, scene=scene, contacts=None)
+class FakeFrames:
+    """Snapshots of the scene's first ``n`` bodies, moved a little every frame (the rest poses
+    are read from the BodySpecs once)."""
+
+    def __init__(self, scene, n: int):
+        self.scene, self.n = scene, n
+        self.bodies = tuple(scene.bodies[:n])
+        self.rest = np.array([b.position for b in self.bodies], dtype=np.float32)
+        self.quat = np.tile(np.array([1.0, 0.0, 0.0, 0.0], dtype=np.float32), (n, 1))
+
+    def __call__(self, frame: int):
+        pos = self.rest.copy()
+        pos[:, 2] += 0.01 * np.sin(frame * 0.1 + np.arange(self.n))
+        return SimpleNamespace(world_id=1, generation=1, step=frame, positions=pos, orientations=self.quat,
+                               speeds=np.zeros(self.n, np.float32), bodies=self.bodies, scene=self.scene,
+                               contacts=None)
 
 
 def server_cost(server, scene, n: int, frames: int = 200) -> dict:
     from web.render import WorldView
 
     view = WorldView(server)
-    snaps = [fake_snapshot(scene, n, k) for k in range(frames + 1)]
+    fake = FakeFrames(scene, n)
+    snaps = [fake(k) for k in range(frames + 1)]
     view.show(snaps[0])  # creates the batched node
     times = []
     for snap in snaps[1:]:
@@ -82,16 +89,20 @@ def snapshot_cost(scene, n: int, steps: int = 50) -> dict:
 def client_fps(server, scene, n: int, seconds: float = 8.0) -> dict:
     from playwright.sync_api import sync_playwright
 
+    from web.browser import CHROMIUM_ARGS, chromium_path
+
     from web.render import WorldView
 
     stop = threading.Event()
     pushed = [0]
 
+    fake = FakeFrames(scene, n)
+
     def pusher():
         view = WorldView(server)
         k = 0
         while not stop.is_set():
-            view.show(fake_snapshot(scene, n, k))
+            view.show(fake(k))
             pushed[0] += 1
             k += 1
             stop.wait(1 / 30)
@@ -100,7 +111,7 @@ def client_fps(server, scene, n: int, seconds: float = 8.0) -> dict:
     thread.start()
     url = f"http://localhost:{server.get_port()}"
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=CHROMIUM_ARGS)
+        browser = p.chromium.launch(executable_path=chromium_path(), headless=True, args=CHROMIUM_ARGS)
         page = browser.new_page(viewport={"width": 1280, "height": 800})
         page.goto(url)
         page.wait_for_selector("canvas", timeout=60_000)
@@ -131,12 +142,10 @@ def main() -> None:
     counts = [int(x) for x in args.bodies.split(",")]
     scene = grid_scene(max(counts))
     from web.app import free_port
+    from web.render import configure_lighting
 
     server = viser.ViserServer(host="127.0.0.1", port=free_port(), verbose=False)
-    server.scene.configure_environment_map(None)
-    server.scene.configure_default_lights(enabled=False)
-    server.scene.add_light_ambient("/ambient", intensity=0.55)
-    server.scene.add_light_directional("/sun", intensity=1.6, position=(6.0, -10.0, 14.0))
+    configure_lighting(server.scene)
     server.initial_camera.position = (30.0, -40.0, 25.0)
     server.initial_camera.look_at = (8.0, 8.0, 3.0)
     rows = []
@@ -148,9 +157,7 @@ def main() -> None:
             row.update(client_fps(server, scene, n))
         rows.append(row)
         server.scene.reset()
-        server.scene.configure_environment_map(None)
-        server.scene.add_light_ambient("/ambient", intensity=0.55)
-        server.scene.add_light_directional("/sun", intensity=1.6, position=(6.0, -10.0, 14.0))
+        configure_lighting(server.scene)  # reset() removed the lights with every other node
     server.stop()
     keys = list(rows[0])
     print(" | ".join(f"{k:>18s}" for k in keys))

@@ -15,8 +15,6 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run"]
 
 
 def main() -> None:
@@ -29,6 +27,7 @@ def main() -> None:
     from playwright.sync_api import sync_playwright
 
     from web.app import free_port
+    from web.browser import CHROMIUM_ARGS, chromium_path
 
     port = free_port()
     env = {**os.environ, "TI_SKIP_VERSION_CHECK": "ON", "PYTHONUNBUFFERED": "1"}
@@ -42,7 +41,7 @@ def main() -> None:
         else:
             raise SystemExit("the server did not start")
         with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path="/usr/bin/chromium", headless=True, args=CHROMIUM_ARGS)
+            browser = p.chromium.launch(executable_path=chromium_path(), headless=True, args=CHROMIUM_ARGS)
             page = browser.new_page(viewport={"width": 1400, "height": 820})
             page.goto(f"http://localhost:{port}")
             page.get_by_role("button", name="Drop debris").wait_for(state="visible", timeout=120_000)

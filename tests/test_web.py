@@ -10,7 +10,6 @@ from __future__ import annotations
 import io
 import os
 import re
-import shutil
 import socket
 import subprocess
 import sys
@@ -21,26 +20,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from web.app import free_port
+from web.browser import CHROMIUM_ARGS, chromium_path
+
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "tests" / "data" / "web_scene.toml"
 ARTIFACTS = Path(os.environ.get("SANDBOX_ARTIFACTS", ROOT / "artifacts"))
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-                 "--disable-component-update", "--disable-sync", "--no-first-run"]
 START_TIMEOUT_S = 300  # compiling the kernels on a busy 2-core machine
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _chromium() -> str | None:
-    for candidate in (os.environ.get("SANDBOX_CHROMIUM"), "/usr/bin/chromium", shutil.which("chromium"),
-                      shutil.which("chromium-browser")):
-        if candidate and Path(candidate).exists():
-            return candidate
-    return None
 
 
 def _no_browser(reason: str):
@@ -53,7 +39,7 @@ class Server:
     """``sandbox serve`` in a subprocess; its output is collected for assertions."""
 
     def __init__(self, *args: str):
-        self.port = _free_port()
+        self.port = free_port()
         env = {**os.environ, "TI_SKIP_VERSION_CHECK": "ON", "PYTHONUNBUFFERED": "1"}
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "sandbox.cli", "serve", *args, "--port", str(self.port), "--arch", "cpu"],
@@ -93,7 +79,7 @@ class Server:
 
 @pytest.fixture(scope="module")
 def browser():
-    chromium = _chromium()
+    chromium = chromium_path()
     if chromium is None:
         _no_browser("no Chromium found (apt-get install chromium, or set SANDBOX_CHROMIUM)")
     try:

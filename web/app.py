@@ -21,7 +21,7 @@ from sandbox import SandboxError
 from sandbox.scene.library import resolve_scene
 
 from .panel import ControlPanel
-from .render import WorldView, camera_for
+from .render import WorldView, camera_for, configure_lighting
 from .simulation import Simulation
 
 RENDER_HZ = 30.0
@@ -73,7 +73,6 @@ class SandboxApp:
         self.recordings_dir = recordings_dir
         self.server = None
         self.render_fps = 0.0
-        self.frames_sent = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
@@ -123,12 +122,7 @@ class SandboxApp:
     def _setup_scene(self) -> None:
         s = self.server
         s.gui.configure_theme(control_width="large", dark_mode=False, show_logo=False)
-        # Fast in a software-rendered browser (apis.md: the env map + shadowed default lights
-        # cost ~1 FPS there): no environment map, no default lights, no shadows, no grid.
-        s.scene.configure_environment_map(None)
-        s.scene.configure_default_lights(enabled=False)
-        s.scene.add_light_ambient("/lights/ambient", intensity=0.55)
-        s.scene.add_light_directional("/lights/sun", intensity=1.6, position=(6.0, -10.0, 14.0))
+        configure_lighting(s.scene)
         snap = self.sim.latest()
         eye, target = camera_for(snap.positions)
         s.initial_camera.position = eye
@@ -146,13 +140,12 @@ class SandboxApp:
         while not self._stop.is_set():
             t0 = time.perf_counter()
             snap = self.sim.latest()
-            key = (snap.world_id, snap.generation, snap.step, self.panel.selected, self.panel.color_mode,
-                   snap.contacts is None)
+            selected, mode = self.panel.selected, self.panel.color_mode  # read once: other threads write them
+            key = (snap.world_id, snap.generation, snap.step, selected, mode, snap.contacts is None)
             if key != last_key:  # a new frame (or a new look): skipped snapshots are never drawn
-                self.view.show(snap, self.panel.selected, self.panel.color_mode)
+                self.view.show(snap, selected, mode)
                 last_key = key
                 frames += 1
-                self.frames_sent += 1
             now = time.perf_counter()
             if now - fps_t0 >= 1.0:
                 self.render_fps = frames / (now - fps_t0)

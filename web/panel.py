@@ -48,9 +48,9 @@ class ControlPanel:
         self.selected: int | None = None
         self.color_mode = "shape"
         self._seeds = 0  # seeds of debris drops and fractures: a session is repeatable
-        self._render_fps = 0.0
         self._shown: dict = {}  # what the widgets show, to skip redundant updates
         self._local = threading.local()
+        self._plotted = None
         self._build()
 
     # ------------------------------------------------------------------ layout
@@ -239,13 +239,13 @@ class ControlPanel:
         pieces, burst = int(self.pieces.value), float(self.burst.value)
         self._seeds += 1
         seed = self._seeds
+        self.selected = None
 
         def run(s):
             mass = s.world.body_specs[body].mass
             ev = EventSpec(time=0.0, kind="fracture", bodies=[body], pieces=pieces, seed=seed,
                            outward_impulse=burst * mass)
             s.apply(_timed(s, ev))
-            self.selected = None
         self.sim.submit(f"fracture body {body} into {pieces} pieces", run, on_error=self._notify(event, "Fracture"))
 
     @_user_action
@@ -309,7 +309,7 @@ class ControlPanel:
         m, t = snap.metrics, snap.timing_ms
         stages = " · ".join(f"{k} {t.get(k, 0.0):.2f}" for k in ("collide", "solve", "integrate"))
         lines = [
-            f"| | |\n|---|---|",
+            "| | |\n|---|---|",
             f"| bodies | **{len(snap.bodies)}** |",
             f"| contacts | {m['contacts']} ({m['manifolds']} manifolds) |",
         ]
@@ -327,22 +327,24 @@ class ControlPanel:
         ]
         self._set(self.stats, "content", "\n".join(lines))
         h = snap.history
-        if len(h["step"]):
+        if len(h["step"]) and self._plotted != (snap.world_id, snap.step):  # nothing new while paused
+            self._plotted = (snap.world_id, snap.step)
             self.ke_plot.data = (h["step"], h["kinetic_energy"])
             self.res_plot.data = (h["step"], h["residual_rms"])
-        if self.selected is not None and self.selected >= len(snap.bodies):
-            self.selected = None
-        if self.selected is None:
+        selected = self.selected  # read once: GUI callbacks may change it meanwhile
+        if selected is not None and selected >= len(snap.bodies):
+            selected = self.selected = None
+        if selected is None:
             text = "Click a body to select it."
         else:
-            body = snap.bodies[self.selected]
+            body = snap.bodies[selected]
             kinds = "+".join(s.kind for s in body.shapes)
-            text = (f"Body **{self.selected}**{f' ({body.name})' if body.name else ''}: {kinds}, "
+            text = (f"Body **{selected}**{f' ({body.name})' if body.name else ''}: {kinds}, "
                     f"{'static' if body.static else f'{body.mass:.3g} kg'}, "
-                    f"|v| = {snap.speeds[self.selected]:.3g} m/s")
+                    f"|v| = {snap.speeds[selected]:.3g} m/s")
         self._set(self.selection, "content", text)
-        self._set(self.remove, "disabled", self.selected is None)
-        self._set(self.fracture, "disabled", self.selected is None)
+        self._set(self.remove, "disabled", selected is None)
+        self._set(self.fracture, "disabled", selected is None)
 
     def _sync(self, handle, value) -> None:
         """Show the world's value without firing the widget's callback again."""

@@ -32,6 +32,7 @@ class WorldView:
         self._world_id = None
         self._generation = None
         self._batches: dict[tuple, _Batch] = {}
+        self._meshes: dict[tuple, tuple] = {}  # key -> (vertices, faces): a hull's mesh is built once per world
         self._colors_key = None
         self._contacts_shown = False
         self._base_colors = np.zeros((0, 3), dtype=np.uint8)
@@ -63,6 +64,7 @@ class WorldView:
                                               flat_shading=True, cast_shadow=False, receive_shadow=False)
         self._world_id = snap.world_id
         self._generation = None
+        self._meshes.clear()
 
     def _regroup(self, snap) -> None:
         groups: dict[tuple, list[int]] = {}
@@ -77,9 +79,11 @@ class WorldView:
                 self._batches.pop(key).handle.remove()
         for n, (key, members) in enumerate(sorted(groups.items(), key=lambda kv: kv[1][0])):
             idx = np.asarray(members, dtype=np.int64)
-            mesh = shape_mesh(key, snap.bodies[members[0]])
+            if key not in self._meshes:
+                self._meshes[key] = shape_mesh(key, snap.bodies[members[0]])
+            vertices, faces = self._meshes[key]
             handle = self.server.scene.add_batched_meshes_simple(
-                f"/bodies/{_node_name(key)}", mesh.vertices, mesh.faces,
+                f"/bodies/{_node_name(key)}", vertices, faces,
                 batched_wxyzs=snap.orientations[idx], batched_positions=snap.positions[idx],
                 batched_scales=scales[idx], batched_colors=np.zeros((len(idx), 3), dtype=np.uint8),
                 flat_shading=key[0] != "sphere", cast_shadow=False, receive_shadow=False)
@@ -134,6 +138,15 @@ class WorldView:
         self.server.scene.add_line_segments("/contacts/normals", segments, colors=(255, 220, 0), thickness=2.0,
                                             thickness_units="screen")
         self._contacts_shown = True
+
+
+def configure_lighting(scene) -> None:
+    """Fast in a software-rendered browser (apis.md: the environment map and the shadowed
+    default lights cost ~1 FPS there): no environment map, no default lights, no shadows."""
+    scene.configure_environment_map(None)
+    scene.configure_default_lights(enabled=False)
+    scene.add_light_ambient("/lights/ambient", intensity=0.55)
+    scene.add_light_directional("/lights/sun", intensity=1.6, position=(6.0, -10.0, 14.0))
 
 
 def _node_name(key: tuple) -> str:

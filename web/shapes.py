@@ -8,21 +8,16 @@ sizes still needs one node per kind; hulls and compounds are unique shapes (one 
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import trimesh
 
+from sandbox.scene.rotations import IDENTITY, quat_to_matrix
 from sandbox.scene.spec import BodySpec, ShapeSpec
 
-IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
-
-@dataclass(frozen=True)
-class RenderShape:
-    """One distinct drawable: a key that groups bodies, and the mesh in the body frame."""
-
-    key: tuple
+class RenderMesh(NamedTuple):
     vertices: np.ndarray  # (V, 3) float32, body frame (unit size for scaled kinds)
     faces: np.ndarray  # (F, 3) uint32
 
@@ -40,7 +35,7 @@ def body_shape(body: BodySpec) -> tuple[tuple, np.ndarray]:
     return ("mesh", _digest(body.shapes)), np.ones(3)
 
 
-def shape_mesh(key: tuple, body: BodySpec) -> RenderShape:
+def shape_mesh(key: tuple, body: BodySpec) -> RenderMesh:
     """The mesh for ``key`` (``body`` is any body with that key)."""
     if key == ("box",):
         mesh = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
@@ -50,8 +45,7 @@ def shape_mesh(key: tuple, body: BodySpec) -> RenderShape:
         mesh = trimesh.creation.capsule(height=2.0 * key[1], radius=1.0, count=[16, 8])
     else:
         mesh = trimesh.util.concatenate([_placed_mesh(s) for s in body.shapes])
-    return RenderShape(key, np.asarray(mesh.vertices, dtype=np.float32),
-                       np.asarray(mesh.faces, dtype=np.uint32))
+    return RenderMesh(np.asarray(mesh.vertices, dtype=np.float32), np.asarray(mesh.faces, dtype=np.uint32))
 
 
 def _placed_mesh(shape: ShapeSpec) -> trimesh.Trimesh:
@@ -63,7 +57,8 @@ def _placed_mesh(shape: ShapeSpec) -> trimesh.Trimesh:
         mesh = trimesh.creation.capsule(height=2.0 * shape.half_height, radius=shape.radius, count=[16, 8])
     else:
         mesh = trimesh.convex.convex_hull(np.asarray(shape.vertices, dtype=np.float64))
-    transform = trimesh.transformations.quaternion_matrix(np.asarray(shape.local_orientation, dtype=np.float64))
+    transform = np.eye(4)
+    transform[:3, :3] = quat_to_matrix(shape.local_orientation)
     transform[:3, 3] = shape.local_position
     mesh.apply_transform(transform)
     return mesh

@@ -25,7 +25,9 @@ import numpy as np
 from sandbox import SandboxError, Scene, SimulationError
 from sandbox.scene.spec import EventSpec
 
-HISTORY = 600  # frames kept for the live plots
+HISTORY = 600  # published frames kept for the live plots
+PUBLISH_HZ = 30.0  # snapshots per second while playing: the renderer draws at most this many
+BODY_LIST_KINDS = ("drop", "remove", "fracture")
 
 
 @dataclass(frozen=True)
@@ -103,6 +105,7 @@ class Simulation:
         self._world_id = 0
         self._generation = 0
         self._single_steps = 0
+        self._last_publish = 0.0
         self._stop = threading.Event()
         self._ready = threading.Event()
         self._history = {k: collections.deque(maxlen=HISTORY) for k in ("step", "kinetic_energy", "residual_rms")}
@@ -159,9 +162,14 @@ class Simulation:
 
     def apply(self, event: EventSpec) -> None:
         """An edit of the running world, logged like a scripted event (recordings replay it)."""
-        n = self.world.body_count
+        logged = len(self.world.applied_events)
         self.world.apply_event(event)
-        if event.kind in ("drop", "remove", "fracture") or self.world.body_count != n:
+        self._note_body_list_edits(logged)
+
+    def _note_body_list_edits(self, logged: int) -> None:
+        """A new generation when an event logged since ``logged`` changed the body list: the
+        panel's edits, and those a step applies itself (scripted events, impact fractures)."""
+        if any(e.kind in BODY_LIST_KINDS for _, e in self.world.applied_events[logged:]):
             self._generation += 1
 
     def step_once(self) -> None:
@@ -202,7 +210,7 @@ class Simulation:
                 next_tick = time.perf_counter()
                 continue
             self._single_steps = max(0, self._single_steps - 1)
-            if self._step():
+            if self._step() and (not self.playing or time.perf_counter() - self._last_publish >= 1.0 / PUBLISH_HZ):
                 self._publish(new_frame=True)
             if self.realtime:
                 next_tick += self.world.dt
@@ -227,14 +235,12 @@ class Simulation:
                 self._report(cmd, f"{cmd.label} failed: {type(exc).__name__}: {exc}")
             else:
                 self.log(f"[sandbox] {cmd.label}")
-                if cmd.on_done is not None:
-                    cmd.on_done(result)
+                _in_background(cmd.on_done, result)
                 self._publish()
 
     def _report(self, cmd: Command, message: str) -> None:
         self.log(f"[sandbox] {message}")
-        if cmd.on_error is not None:
-            cmd.on_error(message)
+        _in_background(cmd.on_error, message)
 
     def _step(self) -> bool:
         """One step. Once per stats window the step is profiled stage by stage (a profiled step
@@ -246,6 +252,7 @@ class Simulation:
         if profiled:
             profiler.reset()
         profiler.enabled = profiled
+        logged = len(self.world.applied_events)
         t0 = time.perf_counter()
         try:
             self.world.step(1)
@@ -257,6 +264,7 @@ class Simulation:
         finally:
             profiler.enabled = False
         now = time.perf_counter()
+        self._note_body_list_edits(logged)
         if profiled:
             s.sampled_ms = self.world.timing_ms()
         else:
@@ -277,6 +285,7 @@ class Simulation:
         return True
 
     def _publish(self, new_frame: bool = False) -> None:
+        self._last_publish = time.perf_counter()
         w = self.world
         st = w.state()
         m = w.metrics()
@@ -316,3 +325,9 @@ class Simulation:
         )
         with self._latest_lock:
             self._latest = snap
+
+
+def _in_background(callback, value) -> None:
+    """GUI follow-ups (notifications, a recording's download) run off the simulation thread."""
+    if callback is not None:
+        threading.Thread(target=callback, args=(value,), daemon=True).start()
