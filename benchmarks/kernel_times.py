@@ -1,7 +1,7 @@
 """Milliseconds per step of every kernel a step launches, on a settled scene.
 
     python benchmarks/kernel_times.py [--scene pile_1000] [--solver mass-splitting] [--iterations 15]
-                                      [--settle 300] [--steps 30]
+                                      [--settle 300] [--steps 30] [--launch auto]
 
 Each kernel that ``World.step`` launches (the fused set-up kernels of step_kernels.py,
 the iteration loop, and the per-stage kernels where they still run) is wrapped with a
@@ -31,7 +31,7 @@ WRAPPED = {
     "sandbox.integrate": ["check_velocities"],
     "sandbox.solvers.rows": ["prepare_rows", "prepare_response"],
     "sandbox.solvers.blocks": ["build_adjacency"],
-    "sandbox.solvers.substep": ["iterate_in_order"],
+    "sandbox.solvers.substep": ["iterate_in_order", "iterate_shared"],
 }
 
 
@@ -44,6 +44,7 @@ def main() -> None:
     ap.add_argument("--iterations", type=int, default=15)
     ap.add_argument("--settle", type=int, default=300)
     ap.add_argument("--steps", type=int, default=30)
+    ap.add_argument("--launch", default="auto", help="Settings.iteration_launch")
     a = ap.parse_args()
     total = collections.defaultdict(float)
     timing = [False]
@@ -71,7 +72,10 @@ def main() -> None:
         for name in names:
             if hasattr(mod, name):
                 wrap(mod, name)
-    world = World(Scene.load(resolve_scene(a.scene)), solver=a.solver, iterations=a.iterations, arch="cpu")
+    from sandbox import Settings
+
+    world = World(Scene.load(resolve_scene(a.scene)), solver=a.solver, iterations=a.iterations, arch="cpu",
+                  settings=Settings(iteration_launch=a.launch))
     world.step(a.settle)
     b = world.buf
     print(f"{a.scene} {a.solver} {a.iterations} iterations, after {a.settle} steps: pairs {b.bp.pair_total[None]}, "

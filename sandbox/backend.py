@@ -93,3 +93,12 @@ def sync() -> None:
     import taichi as ti
 
     ti.sync()
+
+
+def serialize_light_loops() -> bool:
+    """Compile-time switch for ``ti.loop_config(serialize=...)`` before a *light* loop (a
+    copy or clear over bodies, a scan, a short fill: microseconds of work). On the CPU every
+    parallel loop is a thread-pool dispatch, ~30-50 us each on the 2-core VM whatever its
+    size (benchmarks/loop_dispatch.py), against ~0.3 us for a loop run on the launching
+    thread; a step has ~40 such loops. On CUDA they stay parallel."""
+    return _active == "cpu"

@@ -14,6 +14,7 @@ Static bodies have inverse mass and inverse inertia zero and are never moved.
 import numpy as np
 import taichi as ti
 
+from .backend import serialize_light_loops
 from .math3d import quat_to_mat
 
 vec3 = ti.math.vec3
@@ -64,6 +65,7 @@ class Bodies:
 
 @ti.func
 def update_world_inertia_loops(b: ti.template()):
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(b.count[None]):
         r = quat_to_mat(b.rot[i])
         b.inv_inertia_world[i] = r @ b.inv_inertia[i] @ r.transpose()
@@ -76,6 +78,7 @@ def update_world_inertia(b: ti.template()):
 
 @ti.func
 def save_good_state_loops(b: ti.template()):
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(b.count[None]):
         b.good_pos[i] = b.pos[i]
         b.good_rot[i] = b.rot[i]

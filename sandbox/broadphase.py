@@ -20,6 +20,7 @@ as partner ``-1 - plane_index``.
 import numpy as np
 import taichi as ti
 
+from .backend import serialize_light_loops
 from .integrate import ERR_BOUNDS
 from .math3d import quat_rotate, quat_to_mat
 from .prefix_sum import Scanner, exclusive_scan, sort_range
@@ -214,10 +215,12 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
         d = b - a + 1
         bp.cell_count[k] = d[0] * d[1] * d[2]
     exclusive_scan(bp.scanner, bp.cell_count, bp.entry_start, n, bp.entry_total)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for h in range(bp.hash_size):
         bp.bucket_count[h] = 0
         bp.bucket_fill[h] = 0
     mask = bp.hash_size - 1
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):
         i = shapes.dynamic_ids[k]
         a, b = _cell_range(bp.aabb_min[i], bp.aabb_max[i], cell)
@@ -232,10 +235,12 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
                         ti.atomic_add(bp.bucket_count[h], 1)
                     e += 1
     exclusive_scan(bp.scanner, bp.bucket_count, bp.bucket_start, bp.hash_size, bp.bucket_total)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for e in range(ti.min(bp.entry_total[None], bp.entry_capacity)):
         h = bp.entry_bucket[e]
         slot = bp.bucket_start[h] + ti.atomic_add(bp.bucket_fill[h], 1)
         bp.sorted_shape[slot] = bp.entry_shape[e]
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for h in range(bp.hash_size):
         sort_range(bp.sorted_shape, bp.bucket_start[h], bp.bucket_start[h + 1])  # the fill is in thread order
 
@@ -330,6 +335,7 @@ def find_pairs_loops(bp: ti.template(), shapes: ti.template()):
     for k in range(n):
         bp.pair_count[k] = _visit_pairs(bp, shapes, k, k * PAIRS_PER_SHAPE, SCRATCH)
     exclusive_scan(bp.scanner, bp.pair_count, bp.pair_start, n, bp.pair_total)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):
         cnt = bp.pair_count[k]
         base = bp.pair_start[k]

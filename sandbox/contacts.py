@@ -14,6 +14,7 @@ their order is that of the pair list: deterministic, with no atomics.
 
 import taichi as ti
 
+from .backend import serialize_light_loops
 from .math3d import quat_mul, quat_rotate
 from .narrowphase import collide_kinds
 from .narrowphase.manifold import MAX_POINTS, ShapePose
@@ -193,6 +194,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
                 c.friction[q] = mu
                 c.restitution[q] = e
                 c.slop[q] = c.raw_slop[p]
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(shapes.dynamic_count[None]):
         i = shapes.dynamic_ids[k]
         p0 = bp.pair_start[k]

@@ -25,6 +25,7 @@ to the host every step.
 
 import taichi as ti
 
+from .backend import serialize_light_loops
 from .math3d import any_nonfinite3, quat_mul, quat_normalize, quat_rotate, quat_rotate_inv, quat_to_mat
 
 vec3 = ti.math.vec3
@@ -60,10 +61,15 @@ could not change w. A resting or slowly turning body needs one step, not NEWTON_
 
 
 @ti.func
+def apply_gravity(bodies: ti.template(), gravity: vec3, h: ti.f32, i: ti.i32):
+    if bodies.inv_mass[i] > 0.0:
+        bodies.lin_vel[i] += gravity * h
+
+
+@ti.func
 def gravity_loop(bodies: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
     for i in range(bodies.count[None] * active):  # active = 0: skipped, still a top-level loop
-        if bodies.inv_mass[i] > 0.0:
-            bodies.lin_vel[i] += gravity * h
+        apply_gravity(bodies, gravity, h, i)
 
 
 @ti.kernel
@@ -103,6 +109,7 @@ def rotate_free(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia: ti.te
 
 @ti.func
 def check_velocities_loops(bodies: ti.template(), err: ti.template()):
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(bodies.count[None]):
         if bodies.inv_mass[i] > 0.0:
             if any_nonfinite3(bodies.lin_vel[i]) or any_nonfinite3(bodies.ang_vel[i]):
@@ -116,22 +123,28 @@ def check_velocities(bodies: ti.template(), err: ti.template()):
 
 
 @ti.func
+def advance_pose(bodies: ti.template(), h: ti.f32, err: ti.template(), i: ti.i32):
+    """Body i's position and orientation over ``h`` with its solved velocities."""
+    if bodies.inv_mass[i] > 0.0:
+        v = bodies.lin_vel[i]
+        w = bodies.ang_vel[i]
+        if any_nonfinite3(v) or any_nonfinite3(w):
+            ti.atomic_or(err.flags[None], ERR_VELOCITY)
+            ti.atomic_min(err.body[None], i)
+        x = bodies.pos[i] + h * v
+        q, w1 = rotate_free(bodies.rot[i], w, bodies.inertia[i], bodies.inv_inertia[i], h)
+        if any_nonfinite3(x) or any_nonfinite3(vec3(q[1], q[2], q[3])) or not (ti.abs(q[0]) <= 1.0):
+            ti.atomic_or(err.flags[None], ERR_POSE)
+            ti.atomic_min(err.body[None], i)
+        bodies.pos[i] = x
+        bodies.rot[i] = q
+        bodies.ang_vel[i] = w1
+
+
+@ti.func
 def positions_loop(bodies: ti.template(), h: ti.f32, err: ti.template()):
     for i in range(bodies.count[None]):
-        if bodies.inv_mass[i] > 0.0:
-            v = bodies.lin_vel[i]
-            w = bodies.ang_vel[i]
-            if any_nonfinite3(v) or any_nonfinite3(w):
-                ti.atomic_or(err.flags[None], ERR_VELOCITY)
-                ti.atomic_min(err.body[None], i)
-            x = bodies.pos[i] + h * v
-            q, w1 = rotate_free(bodies.rot[i], w, bodies.inertia[i], bodies.inv_inertia[i], h)
-            if any_nonfinite3(x) or any_nonfinite3(vec3(q[1], q[2], q[3])) or not (ti.abs(q[0]) <= 1.0):
-                ti.atomic_or(err.flags[None], ERR_POSE)
-                ti.atomic_min(err.body[None], i)
-            bodies.pos[i] = x
-            bodies.rot[i] = q
-            bodies.ang_vel[i] = w1
+        advance_pose(bodies, h, err, i)
 
 
 @ti.kernel

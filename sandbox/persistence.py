@@ -13,6 +13,7 @@ does not kick resting stacks. No atomics: the result is deterministic.
 
 import taichi as ti
 
+from .backend import serialize_light_loops
 from .math3d import quat_rotate, quat_rotate_inv
 
 vec3 = ti.math.vec3
@@ -90,9 +91,11 @@ def store_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.templat
         lam = rows.lam[q] * ti.cast(substeps, ti.f32)  # per-substep impulse -> per step
         hist.lam_n[q] = lam[0]
         hist.lam_t[q] = rows.t1[q] * lam[1] + rows.t2[q] * lam[2]
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(hist.shape_first.shape[0]):
         hist.shape_first[i] = 0
         hist.shape_last[i] = 0
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(shapes.dynamic_count[None]):
         i = shapes.dynamic_ids[k]
         hist.shape_first[i] = c.shape_first[i]

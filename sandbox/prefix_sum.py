@@ -1,6 +1,6 @@
 """Deterministic exclusive prefix sum (and short-range sort) over i32 fields, the same code on CPU and CUDA.
 
-Taichi's ``PrefixSumExecutor`` supports CUDA/Vulkan only (apis.md 4.4), so we
+Taichi's ``PrefixSumExecutor`` supports CUDA/Vulkan only (apis.md 4.4), so on CUDA we
 scan in three loops: per-block sums in parallel, a short serial scan over the
 block sums, then each block scanned serially from its offset. With 256-element
 blocks the serial middle loop is ~n/256 long, which keeps it cheap on a GPU,
@@ -9,6 +9,8 @@ and integer addition makes the result independent of thread scheduling.
 
 
 import taichi as ti
+
+from .backend import serialize_light_loops
 
 BLOCK = 256
 
@@ -39,8 +41,26 @@ class Scanner:
 def exclusive_scan(scan: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template()):
     """dst[i] = sum(src[:i]) for i < n, dst[n] = total[None] = sum(src[:n]).
 
-    Must be called at the top level of a kernel (it contains three top-level loops).
+    Must be called at the top level of a kernel (it contains top-level loops). On the CPU
+    it is one loop on the launching thread: a few microseconds, where each parallel loop
+    would cost a thread-pool dispatch (backend.serialize_light_loops).
     """
+    if ti.static(serialize_light_loops()):
+        ti.loop_config(serialize=True)
+        for _ in range(1):
+            run = 0
+            for k in range(n):
+                v = src[k]
+                dst[k] = run
+                run += v
+            total[None] = run
+            dst[n] = run
+    else:
+        _blocked_scan(scan, src, dst, n, total)
+
+
+@ti.func
+def _blocked_scan(scan: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template()):
     blocks = (n + BLOCK - 1) // BLOCK
     for blk in range(blocks):
         s = 0

@@ -67,12 +67,15 @@ class Settings:
 
     iteration_launch: str = "auto"
     """How the iteration loop is launched (solvers/substep.py); the physics is the same bit
-    for bit. ``"one"``: all iterations in one kernel launch, run in order on one thread;
-    ``"per-substep"``: one launch per iteration whose phases each run in parallel (not
-    for ``pgs-colored``, which then goes stage by stage); ``"per-stage"``: one launch per
-    phase, as the profiler times them; ``"auto"``: ``"one"`` on the CPU (launch overhead,
-    not arithmetic, bounds our scenes on 2 shared cores), ``"per-substep"`` on CUDA. A
-    world with its profiler on, or recording residuals, always goes stage by stage."""
+    for bit. ``"shared"``: all iterations in one kernel launch whose phases the CPU threads
+    share, meeting at the end of each (solvers/team.py; serial ``pgs`` runs ``"one"``);
+    ``"one"``: all iterations in one launch, run in order on one thread; ``"per-substep"``:
+    one launch per iteration whose phases each run in parallel (not for ``pgs-colored``,
+    which then goes stage by stage); ``"per-stage"``: one launch per phase, as the profiler
+    times them; ``"auto"``: ``"shared"`` on the CPU (launch overhead, not arithmetic, bounds
+    our scenes, and a thread-pool wake-up per phase would cost more than the phase),
+    ``"per-substep"`` on CUDA. A world with its profiler on, or recording residuals, always
+    goes stage by stage."""
 
     jacobi_relaxation: float = 0.25
     """[1] Relaxation factor omega of projected Jacobi. Plain Jacobi (1.0)

@@ -429,6 +429,16 @@ class World:
             with p.stage("iterate"):
                 substep.iterate_in_order(blk, rows, c, bodies, b.coloring, b.errors, kind, self._visit(),
                                          self.friction, warm, gravity, h_sub, k, s.sweeps)
+        elif launch == "shared":
+            from .solvers import team
+
+            kind, blk, rows, c, bodies = self._schedule()
+            phases = substep.shared_phase_bound(self._visit(), warm, k, s.sweeps)
+            members = team.cpu_threads()
+            with p.stage("iterate"):
+                substep.iterate_shared(team.team_for(phases, members), blk, rows, c, bodies, b.coloring, b.errors,
+                                       kind, self._visit(), self.friction, warm, gravity, h_sub, k, s.sweeps, phases,
+                                       members)
         elif launch == "per-substep":
             kind, blk, rows, c, bodies = self._schedule()
             with p.stage("iterate"):
@@ -536,13 +546,15 @@ class World:
         return True
 
     def _iteration_launch(self, watch_impacts: bool = False) -> str:
-        """"one", "per-substep" or "per-stage" (Settings.iteration_launch, solvers/substep.py).
-        All three give bit-identical results."""
+        """"shared", "one", "per-substep" or "per-stage" (Settings.iteration_launch,
+        solvers/substep.py). All give bit-identical results."""
         if self.profiler.enabled or self.record_residuals or watch_impacts:
             return "per-stage"  # a timer per stage, a residual read per sweep, impacts summed per substep
         launch = self.settings.iteration_launch
         if launch == "auto":
-            launch = "one" if self.arch == "cpu" else "per-substep"
+            launch = "shared" if self.arch == "cpu" else "per-substep"
+        if launch == "shared" and (self.arch != "cpu" or self.solver == "pgs"):
+            return "one"  # a GPU block cannot wait for another; serial PGS has nothing to share
         if launch == "per-substep" and (self.solver == "pgs-colored" or self.settings.sweeps != 1):
             return "per-stage"  # launches per colour; a sweep count is not unrolled into the kernel
         return launch

@@ -150,21 +150,22 @@ def test_residual_falls_with_sweeps_on_a_frozen_problem(solver):
 
 @pytest.mark.parametrize("solver", DETERMINISTIC)
 def test_iteration_launches_give_the_same_bits(solver):
-    """The iteration loop in one launch (serialized), in one launch per substep (parallel
-    phases) and stage by stage (a launch per phase, as profiled) is the same computation: no
-    float atomics and fixed-order gathers, so the states agree bit for bit
-    (solvers/substep.py)."""
+    """The iteration loop in one launch (serialized), in one launch shared by the CPU threads,
+    in one launch per substep (parallel phases) and stage by stage (a launch per phase, as
+    profiled) is the same computation: no float atomics and fixed-order gathers, so the
+    states agree bit for bit (solvers/substep.py)."""
     from sandbox import Settings
 
     scene = Scene.from_dict(_pile_300())
     opts = {"shuffle": True} if solver == "pgs-colored" else {}
     states = {}
-    for launch in ("per-stage", "one", "per-substep"):
+    launches = ("per-stage", "one", "shared", "per-substep")
+    for launch in launches:
         world = World(scene, solver=solver, iterations=4, arch="cpu", settings=Settings(iteration_launch=launch),
                       **opts)
         world.step(75)
         assert world.metrics()["contacts"] > 300
         states[launch] = world.state()
-    for launch in ("one", "per-substep"):
+    for launch in launches[1:]:
         for key in states["per-stage"]:
             np.testing.assert_array_equal(states["per-stage"][key], states[launch][key], err_msg=f"{launch} {key}")

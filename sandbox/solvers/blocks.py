@@ -32,6 +32,7 @@ Per body, ``scale`` multiplies inverse mass and inertia inside a block and
 
 import taichi as ti
 
+from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .rows import point_impulse, solve_point
 
@@ -91,9 +92,11 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
     nb = bodies.count[None]
     nk = n_blocks(c, kind)
     s.block_count[None] = nk
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(nb):
         s.adj_count[i] = 0
         s.adj_fill[i] = 0
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(nk):
         _, _, a, b = block_range(c, k, kind)
         if bodies.inv_mass[a] > 0.0:
@@ -101,12 +104,14 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
         if bodies.inv_mass[b] > 0.0:
             ti.atomic_add(s.adj_count[b], 1)
     exclusive_scan(s.scanner, s.adj_count, s.adj_start, nb, s.adj_total)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(nk):
         _, _, a, b = block_range(c, k, kind)
         if bodies.inv_mass[a] > 0.0:
             s.adj[s.adj_start[a] + ti.atomic_add(s.adj_fill[a], 1)] = 2 * k
         if bodies.inv_mass[b] > 0.0:
             s.adj[s.adj_start[b] + ti.atomic_add(s.adj_fill[b], 1)] = 2 * k + 1
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(nb):
         e0 = s.adj_start[i]
         e1 = s.adj_start[i + 1]
@@ -127,20 +132,26 @@ def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), k
 
 
 @ti.func
+def gather_body(s: ti.template(), bodies: ti.template(), dv_extra: vec3, i: ti.i32):
+    """Dynamic body i adds its slots in their fixed order, then ``dv_extra`` (gravity of
+    the next substep when a relax sweep carries its warm start, else zero)."""
+    if bodies.inv_mass[i] > 0.0:
+        dv = vec3(0.0)
+        dw = vec3(0.0)
+        for e in range(s.adj_start[i], s.adj_start[i + 1]):
+            slot = s.adj[e]
+            dv += s.slot_dv[slot]
+            dw += s.slot_dw[slot]
+        bodies.lin_vel[i] = bodies.lin_vel[i] + dv_extra + dv  # gravity first, as its own pass did
+        bodies.ang_vel[i] += dw
+
+
+@ti.func
 def gather_slots(s: ti.template(), bodies: ti.template(), dv_extra: vec3, active: ti.i32):
-    """Each dynamic body adds its slots in their fixed order, then ``dv_extra`` (gravity of
-    the next substep when a relax sweep carries its warm start, else zero). ``active`` = 0
-    runs the loop zero times (it stays a top-level, parallel loop)."""
+    """``gather_body`` for every body; ``active`` = 0 runs the loop zero times (it stays a
+    top-level, parallel loop)."""
     for i in range(bodies.count[None] * active):
-        if bodies.inv_mass[i] > 0.0:
-            dv = vec3(0.0)
-            dw = vec3(0.0)
-            for e in range(s.adj_start[i], s.adj_start[i + 1]):
-                slot = s.adj[e]
-                dv += s.slot_dv[slot]
-                dw += s.slot_dw[slot]
-            bodies.lin_vel[i] = bodies.lin_vel[i] + dv_extra + dv  # gravity first, as its own pass did
-            bodies.ang_vel[i] += dw
+        gather_body(s, bodies, dv_extra, i)
 
 
 @ti.func
@@ -174,6 +185,18 @@ def _apply_accumulated(rows: ti.template(), c: ti.template(), q: ti.i32, va: vec
 
 
 @ti.func
+def warm_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+               k: ti.i32):
+    """Block k's share of the warm start, into its two slots."""
+    start, count, a, b = block_range(c, k, kind)
+    dva, dwa, dvb, dwb = _warm_delta(rows, c, bodies, a, b, start, count)
+    s.slot_dv[2 * k] = dva
+    s.slot_dw[2 * k] = dwa
+    s.slot_dv[2 * k + 1] = dvb
+    s.slot_dw[2 * k + 1] = dwb
+
+
+@ti.func
 def warm_start_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                       kind: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
     """Gravity, then last step's matched impulses with the full masses (method.md 1.10):
@@ -181,13 +204,36 @@ def warm_start_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), b
     ``gravity * h`` too. Two loops: at a kernel's top level each runs in parallel; inside
     a serialized loop (solvers/substep.py) both run in order. ``active`` = 0 skips it."""
     for k in range(s.block_count[None] * active):
-        start, count, a, b = block_range(c, k, kind)
-        dva, dwa, dvb, dwb = _warm_delta(rows, c, bodies, a, b, start, count)
-        s.slot_dv[2 * k] = dva
-        s.slot_dw[2 * k] = dwa
-        s.slot_dv[2 * k + 1] = dvb
-        s.slot_dw[2 * k + 1] = dwb
+        warm_block(s, rows, c, bodies, kind, k)
     gather_slots(s, bodies, gravity * h, active)
+
+
+@ti.func
+def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+                mode: ti.template(), friction: ti.template(), then_warm: ti.i32, k: ti.i32):
+    """Block k solved on its own copies of its bodies' velocities (read from before the
+    sweep); the changes, weighted, go to its two slots."""
+    start, count, a, b = block_range(c, k, kind)
+    va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
+    vb0, wb0 = bodies.lin_vel[b], bodies.ang_vel[b]
+    va, wa, vb, wb = va0, wa0, vb0, wb0
+    for q in range(start, start + count):
+        va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
+    if then_warm:
+        # the next substep's warm start, applied once more to the copies with the scaled
+        # responses: scale x weight = 1 for every Jacobi-family body (module docstring),
+        # so after the weight this is the full-mass warm start of ``_warm_delta``, read
+        # from the precomputed rows instead of rebuilt through each body's inertia
+        for q in range(start, start + count):
+            va, wa, vb, wb = _apply_accumulated(rows, c, q, va, wa, vb, wb)
+    dva = (va - va0) * s.weight[a]
+    dwa = (wa - wa0) * s.weight[a]
+    dvb = (vb - vb0) * s.weight[b]
+    dwb = (wb - wb0) * s.weight[b]
+    s.slot_dv[2 * k] = dva
+    s.slot_dw[2 * k] = dwa
+    s.slot_dv[2 * k + 1] = dvb
+    s.slot_dw[2 * k + 1] = dwb
 
 
 @ti.func
@@ -200,27 +246,7 @@ def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
     start, and the gather adds the next substep's gravity: one block pass and two body
     passes fewer per substep than a separate gravity pass and warm-start pass."""
     for k in range(s.block_count[None]):
-        start, count, a, b = block_range(c, k, kind)
-        va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
-        vb0, wb0 = bodies.lin_vel[b], bodies.ang_vel[b]
-        va, wa, vb, wb = va0, wa0, vb0, wb0
-        for q in range(start, start + count):
-            va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
-        if then_warm:
-            # the next substep's warm start, applied once more to the copies with the scaled
-            # responses: scale x weight = 1 for every Jacobi-family body (module docstring),
-            # so after the weight this is the full-mass warm start of ``_warm_delta``, read
-            # from the precomputed rows instead of rebuilt through each body's inertia
-            for q in range(start, start + count):
-                va, wa, vb, wb = _apply_accumulated(rows, c, q, va, wa, vb, wb)
-        dva = (va - va0) * s.weight[a]
-        dwa = (wa - wa0) * s.weight[a]
-        dvb = (vb - vb0) * s.weight[b]
-        dwb = (wb - wb0) * s.weight[b]
-        s.slot_dv[2 * k] = dva
-        s.slot_dw[2 * k] = dwa
-        s.slot_dv[2 * k + 1] = dvb
-        s.slot_dw[2 * k + 1] = dwb
+        sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k)
     gather_slots(s, bodies, gravity * h * ti.cast(then_warm, ti.f32), 1)
 
 

@@ -21,15 +21,21 @@ them, in two ways:
   per colour (a colour count known only on the device cannot be unrolled into top-level
   loops), so it is not offered here.
 
+* ``iterate_shared``: the whole loop in ONE launch as ``iterate_in_order``, but every
+  CPU thread works on it: the threads form a team (solvers/team.py) that walks the same
+  phases, sharing each phase's blocks or bodies and waiting at its end. The same bits
+  again, with both cores and without a launch per phase.
+
 ``World`` picks one (``Settings.iteration_launch``) and keeps the stage-by-stage kernels
 for the profiler (one timer per stage) and for residual recording (a read per sweep).
 """
 
 import taichi as ti
 
-from ..integrate import gravity_loop, positions_loop
-from .blocks import sweep_blocks, warm_start_blocks
-from .pgs import colored_sweep_in_order, pgs_sweep
+from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loop
+from . import team as tm
+from .blocks import gather_body, sweep_block, sweep_blocks, warm_block, warm_start_blocks
+from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX
 
 vec3 = ti.math.vec3
@@ -103,3 +109,143 @@ def substep_parallel(s: ti.template(), rows: ti.template(), c: ti.template(), bo
     _sweep(schedule, s, rows, c, bodies, col, kind, BIASED, friction, 0, gravity, h)
     positions_loop(bodies, h, err)
     _sweep(schedule, s, rows, c, bodies, col, kind, RELAX, friction, then_warm, gravity, h)
+
+
+def shared_phase_bound(schedule: int, warm: bool, iterations: int, sweeps: int) -> int:
+    """Most phases ``iterate_shared`` walks (its team needs a counter pair per phase)."""
+    if schedule == PGS_COLORED:
+        per_sweep = MAX_COLORS + 1  # every colour, then the overflow colour
+        return iterations * (2 * sweeps * per_sweep + 3)
+    return iterations * (4 * sweeps + 2)
+
+
+@ti.func
+def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(), c: ti.template(),
+                 bodies: ti.template(), kind: ti.template(), mode: ti.template(), friction: ti.template(),
+                 then_warm: ti.i32, warm_only: ti.template()) -> ti.i32:
+    """Phase p over all blocks: their warm start, or one sweep. Returns the next phase."""
+    n = s.block_count[None]
+    lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
+    while lo < hi:
+        for k in range(lo, hi):
+            if ti.static(warm_only):
+                warm_block(s, rows, c, bodies, kind, k)
+            else:
+                sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k)
+        tm.finish(team, p, hi - lo)
+        lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
+    tm.wait(team, p, n)
+    return p + 1
+
+
+GATHER, GRAVITY, POSE, GATHER_POSE = 0, 1, 2, 3
+"""What a body phase does to each body: add its slots (and ``dv_extra``), add gravity,
+advance its pose, or add its slots and then advance its pose."""
+
+
+@ti.func
+def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(), bodies: ti.template(), err: ti.template(),
+                what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32) -> ti.i32:
+    n = bodies.count[None]
+    lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
+    while lo < hi:
+        for i in range(lo, hi):
+            if ti.static(what == GATHER or what == GATHER_POSE):
+                gather_body(s, bodies, dv_extra, i)
+            if ti.static(what == GRAVITY):
+                apply_gravity(bodies, gravity, h, i)
+            if ti.static(what == POSE or what == GATHER_POSE):
+                advance_pose(bodies, h, err, i)
+        tm.finish(team, p, hi - lo)
+        lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
+    tm.wait(team, p, n)
+    return p + 1
+
+
+@ti.func
+def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, rows: ti.template(), c: ti.template(), bodies: ti.template(),
+                  col: ti.template(), mode: ti.template(), friction: ti.template()) -> ti.i32:
+    """One pgs-colored sweep: a phase per colour, then the overflow colour as one item
+    (its manifolds may share bodies, so one member solves them all, in order)."""
+    for kc in range(col.color_count[None]):
+        k0 = col.color_start[kc]
+        n = col.color_start[kc + 1] - k0
+        lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
+        while lo < hi:
+            for idx in range(lo, hi):
+                solve_manifold(rows, c, bodies, col.sorted[k0 + idx], mode, friction)
+            tm.finish(team, p, hi - lo)
+            lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
+        tm.wait(team, p, n)
+        p += 1
+    lo, hi, _ = tm.next_chunk(team, p, 1, member, members, 0)
+    if lo < hi:
+        for idx in range(col.color_start[MAX_COLORS], col.color_start[MAX_COLORS + 1]):
+            solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
+        tm.finish(team, p, 1)
+    tm.wait(team, p, 1)
+    return p + 1
+
+
+@ti.func
+def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(), c: ti.template(),
+                  bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
+                  schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32,
+                  pose_after: ti.i32, gravity: vec3, h: ti.f32) -> ti.i32:
+    """One sweep; ``pose_after``: the bodies' poses advance right after it (the biased
+    solve's last sweep), fused into the Jacobi family's gather."""
+    if ti.static(schedule == PGS_COLORED):
+        p = _color_phases(team, p, member, members, rows, c, bodies, col, mode, friction)
+        if pose_after:
+            p = _body_phase(team, p, member, members, s, bodies, err, POSE, vec3(0.0), gravity, h)
+    else:
+        p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, mode, friction, then_warm, False)
+        dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
+        if pose_after:
+            p = _body_phase(team, p, member, members, s, bodies, err, GATHER_POSE, dv_extra, gravity, h)
+        else:
+            p = _body_phase(team, p, member, members, s, bodies, err, GATHER, dv_extra, gravity, h)
+    return p
+
+
+@ti.func
+def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(), c: ti.template(),
+                 bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
+                 schedule: ti.template(), friction: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32,
+                 iterations: ti.i32, sweeps: ti.i32):
+    """What one thread runs: every phase of ``iterate_in_order``, in its order."""
+    fold = ti.static(folds_warm_start(schedule, warm))
+    p = 0
+    for it in range(iterations):
+        first = 1
+        if ti.static(fold):
+            first = 1 if it == 0 else 0
+        if first:
+            if ti.static(warm):
+                p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, True)
+                p = _body_phase(team, p, member, members, s, bodies, err, GATHER, gravity * h, gravity, h)
+            else:
+                p = _body_phase(team, p, member, members, s, bodies, err, GRAVITY, vec3(0.0), gravity, h)
+        for sb in range(sweeps):
+            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, col, err, kind, schedule, BIASED, friction, 0,
+                              int(sb == sweeps - 1), gravity, h)
+        for sr in range(sweeps):
+            then_warm = 0
+            if ti.static(fold):
+                then_warm = 1 if it < iterations - 1 and sr == sweeps - 1 else 0
+            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, col, err, kind, schedule, RELAX, friction, then_warm, 0,
+                              gravity, h)
+
+
+@ti.kernel
+def iterate_shared(team: ti.template(), s: ti.template(), rows: ti.template(), c: ti.template(),
+                   bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
+                   schedule: ti.template(), friction: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32,
+                   iterations: ti.i32, sweeps: ti.i32, phases: ti.i32, members: ti.i32):
+    """All ``iterations`` substeps of ``h`` in one launch, shared by ``members`` threads."""
+    ti.static_assert(schedule != PGS, "serial PGS has nothing to share")
+    tm.reset_loop(team, phases * members)
+    for i in range(members * tm.TASK_ITEMS):
+        if i % tm.TASK_ITEMS == 0:
+            _team_member(team, i // tm.TASK_ITEMS, members, s, rows, c, bodies, col, err, kind, schedule, friction, warm, gravity, h,
+                         iterations, sweeps)
