@@ -26,7 +26,7 @@ to the host every step.
 import taichi as ti
 
 from .backend import serialize_light_loops
-from .math3d import any_nonfinite3, quat_mul, quat_normalize, quat_rotate, quat_rotate_inv, quat_to_mat
+from .math3d import any_nonfinite3, quat_mul, quat_normalize, quat_rotate, quat_rotate_inv
 
 vec3 = ti.math.vec3
 vec4 = ti.math.vec4

@@ -14,7 +14,7 @@ does not kick resting stacks. No atomics: the result is deterministic.
 import taichi as ti
 
 from .backend import serialize_light_loops
-from .math3d import quat_rotate, quat_rotate_inv
+from .math3d import quat_rotate_inv
 
 vec3 = ti.math.vec3
 

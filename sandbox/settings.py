@@ -10,6 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 
 
+ITERATION_LAUNCHES = ("auto", "shared", "one", "per-substep", "per-stage")
+
+
 @dataclass(frozen=True)
 class Settings:
     contact_margin: float = 0.02
@@ -93,6 +96,13 @@ class Settings:
     """[1] Most bodies a world may hold. Adding bodies or fracturing past it raises
     CapacityError naming this setting. Below it, buffers grow in powers of two as bodies
     arrive, keeping every body's state (each new size class compiles the kernels once)."""
+
+    def __post_init__(self):
+        if self.iteration_launch not in ITERATION_LAUNCHES:
+            from .errors import SandboxError
+
+            raise SandboxError(f"unknown iteration_launch {self.iteration_launch!r}; choose one of "
+                               f"{', '.join(ITERATION_LAUNCHES)}")
 
     def replace(self, **changes) -> "Settings":
         known = {f.name for f in fields(self)}

@@ -15,8 +15,9 @@ Python only orchestrates. With the profiler off, the once-per-step stages run in
 launches (``step_kernels.py``: state save + broadphase + narrowphase, then rows + matching +
 schedule set-up, then velocity check + contact store; the same loops as the per-stage
 kernels, the same bits). The iteration loop of step 4 is one kernel launch on
-the CPU (``Settings.iteration_launch``, solvers/substep.py: launch overhead,
-not arithmetic, bounds small scenes) or one launch per substep on CUDA; with
+the CPU, shared by its threads (``Settings.iteration_launch``, solvers/substep.py and
+team.py: launch and dispatch overhead, not arithmetic, bound small scenes) or one
+launch per substep on CUDA; with
 the profiler on it runs stage by stage, a launch per phase, so that each stage
 has its timer (the unfused path; the iteration loop is then ``iterate`` plus the
 per-phase stages). Besides the launches a step makes two small reads: buffer

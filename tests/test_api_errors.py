@@ -65,3 +65,12 @@ def test_bad_solver_and_step_arguments_are_refused(world, call):
 def test_world_needs_a_scene():
     with pytest.raises(SandboxError, match="needs a Scene"):
         World({"body": []}, arch="cpu")
+
+
+def test_unknown_settings_are_refused():
+    from sandbox import Settings
+
+    with pytest.raises(SandboxError, match="unknown iteration_launch 'threads'.*shared"):
+        Settings(iteration_launch="threads")
+    with pytest.raises(SandboxError, match="unknown setting"):
+        Settings().replace(iteration_lunch="one")

@@ -169,3 +169,28 @@ def test_iteration_launches_give_the_same_bits(solver):
     for launch in launches[1:]:
         for key in states["per-stage"]:
             np.testing.assert_array_equal(states["per-stage"][key], states[launch][key], err_msg=f"{launch} {key}")
+
+
+@pytest.mark.parametrize("solver", ["mass-splitting", "pgs-colored"])
+def test_shared_iteration_loop_with_any_team_size(solver, monkeypatch):
+    """The shared loop's result does not depend on how many members the team has or on
+    which member solves which chunk: a team of one (nothing to wait for but itself) and a
+    team of three on Taichi's two threads (a member may start only after another has run
+    the whole loop; it must find every phase done, not wait for anyone) give the bits of
+    the one-thread loop, and neither hangs."""
+    from sandbox import Settings
+    from sandbox.solvers import team
+
+    scene = Scene.from_dict(_pile_300())
+    opts = {"shuffle": True} if solver == "pgs-colored" else {}
+    states = {}
+    for label, launch, members in (("one", "one", None), ("team of 1", "shared", 1), ("team of 3", "shared", 3)):
+        if members is not None:
+            monkeypatch.setattr(team, "cpu_threads", lambda n=members: n)
+        world = World(scene, solver=solver, iterations=4, arch="cpu", settings=Settings(iteration_launch=launch),
+                      **opts)
+        world.step(40)
+        states[label] = world.state()
+    for label in ("team of 1", "team of 3"):
+        for key in states["one"]:
+            np.testing.assert_array_equal(states["one"][key], states[label][key], err_msg=f"{label} {key}")

@@ -14,8 +14,7 @@ them, in two ways:
   for bit that of the parallel launches: a block reads only the velocities from before the
   sweep, writes only its own slots, and each body sums its slots in a fixed order; for
   ``pgs-colored`` the manifolds of one colour share no dynamic body. What is lost is the
-  thread parallelism inside a sweep, which on the shared 2-core machine measured as nothing
-  (1 vs 2 threads within noise on the 1000-box pile) while the launch overhead is real.
+  thread parallelism inside a sweep.
 * ``substep_parallel``: ONE launch per substep whose top-level loops (each phase's loops)
   run one after another, each in parallel, as on a GPU. ``pgs-colored`` keeps its launch
   per colour (a colour count known only on the device cannot be unrolled into top-level
@@ -24,7 +23,8 @@ them, in two ways:
 * ``iterate_shared``: the whole loop in ONE launch as ``iterate_in_order``, but every
   CPU thread works on it: the threads form a team (solvers/team.py) that walks the same
   phases, sharing each phase's blocks or bodies and waiting at its end. The same bits
-  again, with both cores and without a launch per phase.
+  again, with both cores and without a thread-pool dispatch per phase (~50 us each on
+  the 2-core VM, benchmarks/loop_dispatch.py): the CPU default.
 
 ``World`` picks one (``Settings.iteration_launch``) and keeps the stage-by-stage kernels
 for the profiler (one timer per stage) and for residual recording (a read per sweep).
