@@ -14,7 +14,6 @@ does not kick resting stacks. No atomics: the result is deterministic.
 import taichi as ti
 
 from .backend import serialize_light_loops
-from .math3d import quat_rotate_inv
 
 vec3 = ti.math.vec3
 
@@ -44,50 +43,56 @@ def clear_history(hist: ti.template()):
 
 
 @ti.func
-def match_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                   shapes: ti.template(), match_distance: ti.f32, warm_factor: ti.f32):
-    """``warm_factor`` also converts the stored per-step impulse to this step's per-substep one."""
-    for q in range(c.count[None]):
-        i = c.shape_a[q]
-        a = c.body_a[q]
-        anchor = quat_rotate_inv(bodies.rot[a], c.point[q] - bodies.pos[a])
-        best = -1
-        best_d2 = match_distance * match_distance
-        exact = 0
-        for o in range(hist.shape_first[i], hist.shape_last[i]):
-            if exact == 0 and hist.partner[o] == c.partner[q]:
-                if hist.feature[o] == c.feature[q]:
+def match_contact(hist: ti.template(), c: ti.template(), rows: ti.template(), match_distance: ti.f32,
+                  warm_factor: ti.f32, q: ti.i32):
+    """Point q inherits the impulse of last step's point of the same shape pair with its
+    feature id, or else of the nearest within ``match_distance`` (anchors in body a's frame,
+    ``rows.ra_body``: prepare_row runs first). ``warm_factor`` also converts the stored
+    per-step impulse to this step's per-substep one."""
+    i = c.shape_a[q]
+    anchor = rows.ra_body[q]
+    best = -1
+    best_d2 = match_distance * match_distance
+    exact = 0
+    for o in range(hist.shape_first[i], hist.shape_last[i]):
+        if exact == 0 and hist.partner[o] == c.partner[q]:
+            if hist.feature[o] == c.feature[q]:
+                best = o
+                exact = 1
+            else:
+                d2 = (hist.anchor[o] - anchor).norm_sqr()
+                if d2 < best_d2:
+                    best_d2 = d2
                     best = o
-                    exact = 1
-                else:
-                    d2 = (hist.anchor[o] - anchor).norm_sqr()
-                    if d2 < best_d2:
-                        best_d2 = d2
-                        best = o
-        lam = vec3(0.0)
-        if best >= 0:
-            lt = hist.lam_t[best]
-            lam = warm_factor * vec3(hist.lam_n[best], lt.dot(rows.t1[q]), lt.dot(rows.t2[q]))
-        rows.lam[q] = lam
-
-
-@ti.kernel
-def match_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                   shapes: ti.template(), match_distance: ti.f32, warm_factor: ti.f32):
-    match_contacts_loops(hist, c, rows, bodies, shapes, match_distance, warm_factor)
+    lam = vec3(0.0)
+    if best >= 0:
+        lt = hist.lam_t[best]
+        lam = warm_factor * vec3(hist.lam_n[best], lt.dot(rows.t1[q]), lt.dot(rows.t2[q]))
+    rows.lam[q] = lam
 
 
 @ti.func
-def store_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                   shapes: ti.template(), substeps: ti.i32):
+def match_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.template(), match_distance: ti.f32,
+                         warm_factor: ti.f32):
+    for q in range(c.count[None]):
+        match_contact(hist, c, rows, match_distance, warm_factor, q)
+
+
+@ti.kernel
+def match_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), match_distance: ti.f32,
+                   warm_factor: ti.f32):
+    match_contacts_loops(hist, c, rows, match_distance, warm_factor)
+
+
+@ti.func
+def store_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.template(), shapes: ti.template(),
+                         substeps: ti.i32):
     n = ti.min(c.count[None], hist.capacity)
     hist.count[None] = n
     for q in range(n):
-        a = c.body_a[q]
         hist.partner[q] = c.partner[q]
         hist.feature[q] = c.feature[q]
-        # the pose the contact was found at: the step's saved start state
-        hist.anchor[q] = quat_rotate_inv(bodies.good_rot[a], c.point[q] - bodies.good_pos[a])
+        hist.anchor[q] = rows.ra_body[q]  # body a's frame at the pose the contact was found at
         lam = rows.lam[q] * ti.cast(substeps, ti.f32)  # per-substep impulse -> per step
         hist.lam_n[q] = lam[0]
         hist.lam_t[q] = rows.t1[q] * lam[1] + rows.t2[q] * lam[2]
@@ -103,6 +108,6 @@ def store_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.templat
 
 
 @ti.kernel
-def store_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                   shapes: ti.template(), substeps: ti.i32):
-    store_contacts_loops(hist, c, rows, bodies, shapes, substeps)
+def store_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), shapes: ti.template(),
+                   substeps: ti.i32):
+    store_contacts_loops(hist, c, rows, shapes, substeps)

@@ -15,9 +15,9 @@ from .bodies import save_good_state_loops, update_world_inertia_loops
 from .broadphase import build_dynamic_grid_loops, find_pairs_loops
 from .contacts import collide_pairs_loops
 from .integrate import BIG, check_velocities_loops
-from .persistence import match_contacts_loops, store_contacts_loops
+from .persistence import match_contact, store_contacts_loops
 from .solvers.blocks import build_adjacency_loops
-from .solvers.rows import prepare_response_loops, prepare_rows_loops
+from .solvers.rows import prepare_row, respond_row, set_row_params
 
 
 @ti.kernel
@@ -36,14 +36,18 @@ def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template
 
 @ti.kernel
 def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), hist: ti.template(),
-                 shapes: ti.template(), blk: ti.template(), inv_h: ti.f32, bias_rate: ti.f32, softness: ti.f32,
+                 blk: ti.template(), inv_h: ti.f32, bias_rate: ti.f32, softness: ti.f32,
                  max_push: ti.f32, restitution_threshold: ti.f32, match_distance: ti.f32, warm_factor: ti.f32,
                  kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template()):
-    """Rows, warm-start matching, the schedule's adjacency and the row responses."""
-    prepare_rows_loops(rows, c, bodies, inv_h, bias_rate, softness, max_push, restitution_threshold)
-    match_contacts_loops(hist, c, rows, bodies, shapes, match_distance, warm_factor)
+    """The schedule's adjacency, then rows, warm-start matching and row responses in one
+    loop over the points (each point's three stages read only its own earlier results and
+    the adjacency's mass scales: the bits of the three separate loops, one dispatch)."""
+    set_row_params(rows, inv_h, bias_rate, softness, max_push, restitution_threshold)
     build_adjacency_loops(blk, c, bodies, kind, mode, omega)
-    prepare_response_loops(rows, c, bodies, blk.scale, split)
+    for q in range(c.count[None]):
+        prepare_row(rows, c, bodies, q)
+        match_contact(hist, c, rows, match_distance, warm_factor, q)
+        respond_row(rows, c, bodies, blk.scale, split, q)
 
 
 @ti.kernel
@@ -51,4 +55,4 @@ def finish_step(hist: ti.template(), c: ti.template(), rows: ti.template(), bodi
                 shapes: ti.template(), err: ti.template(), substeps: ti.i32):
     """Velocity check and the contact store for the next step's warm start."""
     check_velocities_loops(bodies, err)
-    store_contacts_loops(hist, c, rows, bodies, shapes, substeps)
+    store_contacts_loops(hist, c, rows, shapes, substeps)

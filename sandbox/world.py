@@ -412,15 +412,14 @@ class World:
                 from .step_kernels import prepare_step
 
                 kind, blk, mode, omega, split = self._schedule_setup()
-                prepare_step(b.rows, b.contacts, b.bodies, b.history, b.shapes, blk, 1.0 / h_sub, bias_rate, softness,
+                prepare_step(b.rows, b.contacts, b.bodies, b.history, blk, 1.0 / h_sub, bias_rate, softness,
                              s.max_push_speed, s.restitution_threshold, s.match_distance, s.warm_start / k, kind,
                              mode, omega, split)
                 self._prepare_coloring()
             else:
                 prepare_rows(b.rows, b.contacts, b.bodies, 1.0 / h_sub, bias_rate, softness, s.max_push_speed,
                              s.restitution_threshold)
-                match_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, s.match_distance,
-                               s.warm_start / k)
+                match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
                 self._prepare_schedule()
         launch = self._iteration_launch(watch)
         warm = s.warm_start > 0.0
@@ -485,7 +484,7 @@ class World:
                 finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, k)
             else:
                 check_velocities(b.bodies, b.errors)
-                store_contacts(b.history, b.contacts, b.rows, b.bodies, b.shapes, k)
+                store_contacts(b.history, b.contacts, b.rows, b.shapes, k)
         flags = int(b.errors.flags[None])
         if flags:
             from .persistence import clear_history

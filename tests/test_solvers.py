@@ -194,3 +194,19 @@ def test_shared_iteration_loop_with_any_team_size(solver, monkeypatch):
     for label in ("team of 1", "team of 3"):
         for key in states["one"]:
             np.testing.assert_array_equal(states["one"][key], states[label][key], err_msg=f"{label} {key}")
+
+
+@pytest.mark.parametrize("solver", ["pgs", "mass-splitting"])
+def test_fused_step_kernels_give_the_profiled_bits(solver):
+    """The once-per-step stages fused into three launches (step_kernels.py: state save to
+    narrowphase; adjacency, then rows + matching + responses in one loop over the points;
+    velocity check and contact store) compute what the separate, profiled kernels do."""
+    scene = Scene.from_dict(_pile_300())
+    states = []
+    for profile in (True, False):
+        world = World(scene, solver=solver, iterations=4, arch="cpu", profile=profile)
+        world.step(60)
+        assert world.metrics()["contacts"] > 300
+        states.append(world.state())
+    for key in states[0]:
+        np.testing.assert_array_equal(states[0][key], states[1][key], err_msg=key)

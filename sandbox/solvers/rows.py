@@ -91,36 +91,48 @@ def _share(inv_mass: ti.f32, inv_inertia: ti.template(), r: vec3, e: vec3) -> ti
 
 
 @ti.func
-def prepare_rows_loops(rows: ti.template(), c: ti.template(), bodies: ti.template(), inv_h: ti.f32, bias_rate: ti.f32,
-                 softness: ti.f32, max_push: ti.f32, restitution_threshold: ti.f32):
+def set_row_params(rows: ti.template(), inv_h: ti.f32, bias_rate: ti.f32, softness: ti.f32, max_push: ti.f32,
+                   restitution_threshold: ti.f32):
     rows.params[INV_H] = inv_h
     rows.params[BIAS_RATE] = bias_rate
     rows.params[SOFTNESS] = softness
     rows.params[MAX_PUSH] = max_push
     rows.params[RESTITUTION_THRESHOLD] = restitution_threshold
+
+
+@ti.func
+def prepare_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32):
+    """Point q's anchors, tangent basis, unit response shares and approach speed."""
+    a = c.body_a[q]
+    b = c.body_b[q]
+    p = c.point[q]
+    n = c.normal[q]
+    ra = p - bodies.pos[a]
+    rb = p - bodies.pos[b]
+    t1, t2 = plane_basis(n)
+    ima = bodies.inv_mass[a]
+    imb = bodies.inv_mass[b]
+    ia = bodies.inv_inertia_world[a]
+    ib = bodies.inv_inertia_world[b]
+    rows.ra[q] = ra
+    rows.rb[q] = rb
+    rows.ra_body[q] = quat_rotate_inv(bodies.rot[a], ra)
+    rows.rb_body[q] = quat_rotate_inv(bodies.rot[b], rb)
+    rows.t1[q] = t1
+    rows.t2[q] = t2
+    rows.k_a[q] = vec3(_share(ima, ia, ra, n), _share(ima, ia, ra, t1), _share(ima, ia, ra, t2))
+    rows.k_b[q] = vec3(_share(imb, ib, rb, n), _share(imb, ib, rb, t1), _share(imb, ib, rb, t2))
+    v_rel = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
+    rows.approach[q] = v_rel.dot(n)
+    rows.sep_now[q] = c.sep[q]  # the bodies have not moved since the narrowphase
+
+
+@ti.func
+def prepare_rows_loops(rows: ti.template(), c: ti.template(), bodies: ti.template(), inv_h: ti.f32, bias_rate: ti.f32,
+                 softness: ti.f32, max_push: ti.f32, restitution_threshold: ti.f32):
+    set_row_params(rows, inv_h, bias_rate, softness, max_push, restitution_threshold)
     for q in range(c.count[None]):
-        a = c.body_a[q]
-        b = c.body_b[q]
-        p = c.point[q]
-        n = c.normal[q]
-        ra = p - bodies.pos[a]
-        rb = p - bodies.pos[b]
-        t1, t2 = plane_basis(n)
-        ima = bodies.inv_mass[a]
-        imb = bodies.inv_mass[b]
-        ia = bodies.inv_inertia_world[a]
-        ib = bodies.inv_inertia_world[b]
-        rows.ra[q] = ra
-        rows.rb[q] = rb
-        rows.ra_body[q] = quat_rotate_inv(bodies.rot[a], ra)
-        rows.rb_body[q] = quat_rotate_inv(bodies.rot[b], rb)
-        rows.t1[q] = t1
-        rows.t2[q] = t2
-        rows.k_a[q] = vec3(_share(ima, ia, ra, n), _share(ima, ia, ra, t1), _share(ima, ia, ra, t2))
-        rows.k_b[q] = vec3(_share(imb, ib, rb, n), _share(imb, ib, rb, t1), _share(imb, ib, rb, t2))
-        v_rel = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
-        rows.approach[q] = v_rel.dot(n)
-        rows.sep_now[q] = c.sep[q]  # the bodies have not moved since the narrowphase
+        prepare_row(rows, c, bodies, q)
 
 
 @ti.kernel
@@ -168,8 +180,8 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
 
 
 @ti.func
-def prepare_response_loops(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
-                     split: ti.template()):
+def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
+                split: ti.template(), q: ti.i32):
     """What a sweep needs of point q, once per step: the angular Jacobians r x e of both
     bodies for e = n, t1, t2, the velocity responses s I^-1 (r x e) and s / m, and the
     inverse effective masses of the three rows (the normal one soft and rigid).
@@ -183,30 +195,36 @@ def prepare_response_loops(rows: ti.template(), c: ti.template(), bodies: ti.tem
     effective masses are stored inverted, so a row multiplies instead of dividing (two
     roundings instead of one; measured ~9 % of the pile's iteration loop, where a division's
     latency sits on each row's dependency chain)."""
+    a = c.body_a[q]
+    b = c.body_b[q]
+    sa = 1.0
+    sb = 1.0
+    if ti.static(split):
+        sa = scale[a]
+        sb = scale[b]
+    ia = bodies.inv_inertia_world[a] * sa
+    ib = bodies.inv_inertia_world[b] * sb
+    ra = rows.ra[q]
+    rb = rows.rb[q]
+    ja = ti.Matrix.rows([ra.cross(c.normal[q]), ra.cross(rows.t1[q]), ra.cross(rows.t2[q])])
+    jb = ti.Matrix.rows([rb.cross(c.normal[q]), rb.cross(rows.t1[q]), rb.cross(rows.t2[q])])
+    rows.ang_a[q] = ja
+    rows.ang_b[q] = jb
+    rows.resp_a[q] = (ia @ ja.transpose()).transpose()  # row e = s_a I_a^-1 (r_a x e)
+    rows.resp_b[q] = (ib @ jb.transpose()).transpose()
+    rows.lin_a[q] = bodies.inv_mass[a] * sa
+    rows.lin_b[q] = bodies.inv_mass[b] * sb
+    k = sa * rows.k_a[q] + sb * rows.k_b[q]
+    gamma = rows.params[SOFTNESS] * (rows.k_a[q][0] + rows.k_b[q][0])
+    rows.inv_k[q] = 1.0 / k
+    rows.inv_k_soft[q] = 1.0 / (k[0] + gamma)
+
+
+@ti.func
+def prepare_response_loops(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
+                           split: ti.template()):
     for q in range(c.count[None]):
-        a = c.body_a[q]
-        b = c.body_b[q]
-        sa = 1.0
-        sb = 1.0
-        if ti.static(split):
-            sa = scale[a]
-            sb = scale[b]
-        ia = bodies.inv_inertia_world[a] * sa
-        ib = bodies.inv_inertia_world[b] * sb
-        ra = rows.ra[q]
-        rb = rows.rb[q]
-        ja = ti.Matrix.rows([ra.cross(c.normal[q]), ra.cross(rows.t1[q]), ra.cross(rows.t2[q])])
-        jb = ti.Matrix.rows([rb.cross(c.normal[q]), rb.cross(rows.t1[q]), rb.cross(rows.t2[q])])
-        rows.ang_a[q] = ja
-        rows.ang_b[q] = jb
-        rows.resp_a[q] = (ia @ ja.transpose()).transpose()  # row e = s_a I_a^-1 (r_a x e)
-        rows.resp_b[q] = (ib @ jb.transpose()).transpose()
-        rows.lin_a[q] = bodies.inv_mass[a] * sa
-        rows.lin_b[q] = bodies.inv_mass[b] * sb
-        k = sa * rows.k_a[q] + sb * rows.k_b[q]
-        gamma = rows.params[SOFTNESS] * (rows.k_a[q][0] + rows.k_b[q][0])
-        rows.inv_k[q] = 1.0 / k
-        rows.inv_k_soft[q] = 1.0 / (k[0] + gamma)
+        respond_row(rows, c, bodies, scale, split, q)
 
 
 @ti.kernel

@@ -66,6 +66,7 @@ def cpu_threads() -> int:
 
 @ti.func
 def reset_loop(team: ti.template(), counters: ti.i32):
+    ti.loop_config(serialize=True)  # a few hundred integers: not worth a thread-pool dispatch
     for p in range(counters):
         team.claimed[p] = 0
         team.finished[p] = 0
