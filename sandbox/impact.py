@@ -39,10 +39,21 @@ def clear_points(m: ti.template(), c: ti.template()):
         m.point_total[i] = 0.0
 
 
+@ti.func
+def add_point_impulse(m: ti.template(), rows: ti.template(), q: ti.i32):
+    m.point_total[q] += rows.lam[q][0]
+
+
+@ti.func
+def accumulate_points_loop(m: ti.template(), c: ti.template(), rows: ti.template()):
+    """After every substep (inside the fused iteration kernels too, solvers/substep.py)."""
+    for q in range(c.count[None]):
+        add_point_impulse(m, rows, q)
+
+
 @ti.kernel
 def accumulate_points(m: ti.template(), c: ti.template(), rows: ti.template()):
-    for i in range(c.count[None]):
-        m.point_total[i] += rows.lam[i][0]
+    accumulate_points_loop(m, c, rows)
 
 
 @ti.kernel

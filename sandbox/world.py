@@ -421,14 +421,14 @@ class World:
                              s.restitution_threshold)
                 match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
                 self._prepare_schedule()
-        launch = self._iteration_launch(watch)
+        launch = self._iteration_launch()
         warm = s.warm_start > 0.0
         fold = substep.folds_warm_start(self._visit(), warm)
         if launch == "one":
             kind, blk, rows, c, bodies = self._schedule()
             with p.stage("iterate"):
                 substep.iterate_in_order(blk, rows, c, bodies, b.coloring, b.errors, kind, self._visit(),
-                                         self.friction, warm, gravity, h_sub, k, s.sweeps)
+                                         self.friction, warm, b.impacts, watch, gravity, h_sub, k, s.sweeps)
         elif launch == "shared":
             from .solvers import team
 
@@ -437,15 +437,16 @@ class World:
             members = team.cpu_threads()
             with p.stage("iterate"):
                 substep.iterate_shared(team.team_for(phases, members), blk, rows, c, bodies, b.coloring, b.errors,
-                                       kind, self._visit(), self.friction, warm, gravity, h_sub, k, s.sweeps, phases,
-                                       members)
+                                       kind, self._visit(), self.friction, warm, b.impacts, watch, gravity, h_sub, k,
+                                       s.sweeps, phases, members)
         elif launch == "per-substep":
             kind, blk, rows, c, bodies = self._schedule()
             with p.stage("iterate"):
                 for i in range(k):
                     warm_here, then_warm = int(i == 0 or not fold), int(fold and i < k - 1)
                     substep.substep_parallel(blk, rows, c, bodies, b.coloring, b.errors, kind, self._visit(),
-                                             self.friction, warm, gravity, h_sub, warm_here, then_warm)
+                                             self.friction, warm, b.impacts, watch, gravity, h_sub, warm_here,
+                                             then_warm)
         else:
             # stage by stage; with warm starting, gravity rides on the warm-start pass ("iterate"),
             # and for the Jacobi family both ride on the previous substep's last relax sweep
@@ -545,11 +546,11 @@ class World:
         self._acquire(caps)
         return True
 
-    def _iteration_launch(self, watch_impacts: bool = False) -> str:
+    def _iteration_launch(self) -> str:
         """"shared", "one", "per-substep" or "per-stage" (Settings.iteration_launch,
         solvers/substep.py). All give bit-identical results."""
-        if self.profiler.enabled or self.record_residuals or watch_impacts:
-            return "per-stage"  # a timer per stage, a residual read per sweep, impacts summed per substep
+        if self.profiler.enabled or self.record_residuals:
+            return "per-stage"  # a timer per stage, a residual read per sweep
         launch = self.settings.iteration_launch
         if launch == "auto":
             launch = "shared" if self.arch == "cpu" else "per-substep"

@@ -410,3 +410,23 @@ def test_fracture_past_the_reserve_grows_buffers_keeping_state(make_world):
     assert np.linalg.norm(l1 - l0) <= WORLD_RTOL * np.linalg.norm(l0)
     world.step(5)
     assert np.all(np.isfinite(world.state()["position"]))
+
+
+def test_impact_watch_runs_inside_every_iteration_launch_with_the_same_bits(make_world):
+    """A scene with breakable bodies sums each substep's impulses inside the fused iteration
+    loop (one thread, shared by the threads) as the stage-by-stage path does: the same
+    impulses, the same break, the same bits."""
+    results = {}
+    for launch in ("per-stage", "one", "shared"):
+        world = make_world(settings=Settings(iteration_launch=launch))
+        world.step(30)
+        impulses = world.impact_impulses()
+        world.apply_event(EventSpec(time=0.5, kind="set_velocity", bodies=[BALL_I],
+                                    linear_velocity=np.array([15.0, 0, 0])))
+        world.step(20)
+        assert world.body_count == 14, f"{launch}: the ball should break the target"
+        results[launch] = (impulses, world.state())
+    for launch in ("one", "shared"):
+        np.testing.assert_array_equal(results["per-stage"][0], results[launch][0], err_msg=launch)
+        for key, value in results["per-stage"][1].items():
+            np.testing.assert_array_equal(value, results[launch][1][key], err_msg=f"{launch} {key}")
