@@ -71,7 +71,8 @@ def bench(scene_name: str, solver: str, iterations: int, settle: int, steps: int
     m = world.metrics()
     return {"scene": scene_name, "solver": solver, "iterations": iterations, "bodies": world.body_count,
             "contacts": m["contacts"], "stages": stages, "ms_per_step": 1e3 * wall / steps,
-            "steps_per_s": steps / wall, "loop_ms": 1e3 * loop / steps, "compile_s": compile_s, "ke": m["kinetic_energy"]}
+            "steps_per_s": steps / wall, "loop_ms": 1e3 * loop / steps, "compile_s": compile_s,
+            "ke": m["kinetic_energy"]}
 
 
 def main() -> None:

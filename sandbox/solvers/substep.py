@@ -126,9 +126,9 @@ def shared_phase_bound(schedule: int, warm: bool, iterations: int, sweeps: int) 
 
 
 @ti.func
-def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(), c: ti.template(),
-                 bodies: ti.template(), kind: ti.template(), mode: ti.template(), friction: ti.template(),
-                 then_warm: ti.i32, warm_only: ti.template()) -> ti.i32:
+def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
+                 rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+                 mode: ti.template(), friction: ti.template(), then_warm: ti.i32, warm_only: ti.template()) -> ti.i32:
     """Phase p over all blocks: their warm start, or one sweep. Returns the next phase."""
     n = s.block_count[None]
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
@@ -150,8 +150,9 @@ advance its pose, or add its slots and then advance its pose."""
 
 
 @ti.func
-def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(), bodies: ti.template(), err: ti.template(),
-                what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32) -> ti.i32:
+def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
+                bodies: ti.template(), err: ti.template(), what: ti.template(), dv_extra: vec3, gravity: vec3,
+                h: ti.f32) -> ti.i32:
     n = bodies.count[None]
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
     while lo < hi:
@@ -169,8 +170,9 @@ def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32,
 
 
 @ti.func
-def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, rows: ti.template(), c: ti.template(), bodies: ti.template(),
-                  col: ti.template(), mode: ti.template(), friction: ti.template()) -> ti.i32:
+def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, rows: ti.template(),
+                  c: ti.template(), bodies: ti.template(), col: ti.template(), mode: ti.template(),
+                  friction: ti.template()) -> ti.i32:
     """One pgs-colored sweep: a phase per colour, then the overflow colour as one item
     (its manifolds may share bodies, so one member solves them all, in order)."""
     for kc in range(col.color_count[None]):
@@ -194,10 +196,10 @@ def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
 
 
 @ti.func
-def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(), c: ti.template(),
-                  bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
-                  schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32,
-                  pose_after: ti.i32, gravity: vec3, h: ti.f32) -> ti.i32:
+def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
+                  rows: ti.template(), c: ti.template(), bodies: ti.template(), col: ti.template(),
+                  err: ti.template(), kind: ti.template(), schedule: ti.template(), mode: ti.template(),
+                  friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3, h: ti.f32) -> ti.i32:
     """One sweep; ``pose_after``: the bodies' poses advance right after it (the biased
     solve's last sweep), fused into the Jacobi family's gather."""
     if ti.static(schedule == PGS_COLORED):
@@ -230,8 +232,8 @@ def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 
 
 @ti.func
-def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(), c: ti.template(),
-                 bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
+def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(),
+                 c: ti.template(), bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                  schedule: ti.template(), friction: ti.template(), warm: ti.template(), impacts: ti.template(),
                  watch: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32, sweeps: ti.i32):
     """What one thread runs: every phase of ``iterate_in_order``, in its order."""
@@ -248,14 +250,14 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
             else:
                 p = _body_phase(team, p, member, members, s, bodies, err, GRAVITY, vec3(0.0), gravity, h)
         for sb in range(sweeps):
-            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, col, err, kind, schedule, BIASED, friction, 0,
-                              int(sb == sweeps - 1), gravity, h)
+            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, col, err, kind, schedule, BIASED,
+                              friction, 0, int(sb == sweeps - 1), gravity, h)
         for sr in range(sweeps):
             then_warm = 0
             if ti.static(fold):
                 then_warm = 1 if it < iterations - 1 and sr == sweeps - 1 else 0
-            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, col, err, kind, schedule, RELAX, friction, then_warm, 0,
-                              gravity, h)
+            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, col, err, kind, schedule, RELAX,
+                              friction, then_warm, 0, gravity, h)
         if ti.static(watch):
             p = _point_phase(team, p, member, members, c, rows, impacts)
 
