@@ -53,14 +53,13 @@ class Bodies:
         update_world_inertia(self)
         save_good_state(self)
 
-    def state_numpy(self) -> dict[str, np.ndarray]:
+    STATE_FIELDS = {"position": "pos", "orientation": "rot", "linear_velocity": "lin_vel",
+                    "angular_velocity": "ang_vel"}
+
+    def state_numpy(self, fields=None) -> dict[str, np.ndarray]:
+        """``fields``: the STATE_FIELDS keys to copy off the device (default all)."""
         n = int(self.count[None])
-        return {
-            "position": self.pos.to_numpy()[:n],
-            "orientation": self.rot.to_numpy()[:n],
-            "linear_velocity": self.lin_vel.to_numpy()[:n],
-            "angular_velocity": self.ang_vel.to_numpy()[:n],
-        }
+        return {k: getattr(self, self.STATE_FIELDS[k]).to_numpy()[:n] for k in (fields or self.STATE_FIELDS)}
 
 
 @ti.func

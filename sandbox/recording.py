@@ -61,7 +61,7 @@ def _decode(obj):
 
 def _frame(world) -> np.ndarray:
     """What a recording stores of a step: (N, 7) float32, position then orientation (w x y z)."""
-    st = world.state()
+    st = world.state(("position", "orientation"))
     return np.concatenate([st["position"], st["orientation"]], axis=1).astype(np.float32)
 
 
@@ -185,8 +185,7 @@ def replay(path, arch: str = "cpu", on_frame=None) -> dict:
     while world.step_count < header["start_step"]:
         _apply_due(world, before_start)
         world.step(1)
-    for _, event in before_start:
-        world.apply_event(event)
+    _apply_due(world, before_start)  # the events logged at the first frame's step
     first, worst = None, 0.0
     for k, recorded in enumerate(frames):
         if k > 0:

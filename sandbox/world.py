@@ -433,7 +433,7 @@ class World:
             from .solvers import team
 
             kind, blk, rows, c, bodies = self._schedule()
-            phases = substep.shared_phase_bound(self._visit(), warm, k, s.sweeps)
+            phases = substep.shared_phase_bound(self._visit(), k, s.sweeps)
             members = team.cpu_threads()
             with p.stage("iterate"):
                 substep.iterate_shared(team.team_for(phases, members), blk, rows, c, bodies, b.coloring, b.errors,
@@ -642,11 +642,11 @@ class World:
         and velocities in it are those the body was added with; ``state()`` has the live ones."""
         return tuple(self._bodies)
 
-    def state(self) -> dict[str, np.ndarray]:
+    def state(self, fields=None) -> dict[str, np.ndarray]:
         """Body state as numpy arrays, one row per scene body: position (N,3) [m, centre of
         mass], orientation (N,4) [w, x, y, z], linear_velocity (N,3) [m/s], angular_velocity
-        (N,3) [rad/s, world frame]."""
-        st = self.buf.bodies.state_numpy()
+        (N,3) [rad/s, world frame]. ``fields``: only these keys (fewer device copies)."""
+        st = self.buf.bodies.state_numpy(fields)
         return {k: v[: self.body_count].copy() for k, v in st.items()}
 
     def metrics(self) -> dict[str, float]:
@@ -689,21 +689,22 @@ class World:
         n = int(b.contacts.count[None])
         return float(np.sqrt(b.metrics.values[RES_SQ_SUM] / (3 * n))) if n else 0.0
 
-    def contacts(self) -> dict[str, np.ndarray]:
+    def contacts(self, fields=None) -> dict[str, np.ndarray]:
         """This step's contact points: body_a, body_b, point (world) [m], normal (a to b),
         separation at the step start [m], impulse over the step (normal, tangent1, tangent2)
-        [N s] and manifold index."""
+        [N s] and manifold index. ``fields``: only these keys (fewer device copies)."""
         c, r = self.buf.contacts, self.buf.rows
         n = int(c.count[None])
-        return {
-            "body_a": c.body_a.to_numpy()[:n],
-            "body_b": c.body_b.to_numpy()[:n],
-            "point": c.point.to_numpy()[:n],
-            "normal": c.normal.to_numpy()[:n],
-            "separation": c.sep.to_numpy()[:n],
-            "impulse": r.lam.to_numpy()[:n] * self.iterations,  # per substep -> per step
-            "manifold": c.manifold.to_numpy()[:n],
+        read = {
+            "body_a": lambda: c.body_a.to_numpy()[:n],
+            "body_b": lambda: c.body_b.to_numpy()[:n],
+            "point": lambda: c.point.to_numpy()[:n],
+            "normal": lambda: c.normal.to_numpy()[:n],
+            "separation": lambda: c.sep.to_numpy()[:n],
+            "impulse": lambda: r.lam.to_numpy()[:n] * self.iterations,  # per substep -> per step
+            "manifold": lambda: c.manifold.to_numpy()[:n],
         }
+        return {k: read[k]() for k in (fields or read)}
 
     def timing_ms(self) -> dict[str, float]:
         return self.profiler.mean_ms()

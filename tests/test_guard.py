@@ -8,20 +8,25 @@ from sandbox import Scene, Settings, SimulationError, World
 from .conftest import box_body, scene_dict
 
 
+def _failing_step_keeps_state(world) -> str:
+    """Step once, expecting a SimulationError; the state must be the one before. Returns the message."""
+    before = world.state()
+    with pytest.raises(SimulationError) as err:
+        world.step(1)
+    after = world.state()
+    for key in before:
+        np.testing.assert_array_equal(before[key], after[key], err_msg=key)
+    return str(err.value)
+
+
 def test_diverging_step_names_stage_and_body_and_keeps_last_good_state():
     # two stacked tall boxes under plain Jacobi (relaxation 1) blow up within one step
     tall = (0.2, 0.2, 1.0)
     scene = Scene.from_dict(scene_dict([box_body([0, 0, 1.0], half=tall), box_body([0, 0, 3.0], half=tall)]))
     world = World(scene, solver="jacobi", iterations=1, arch="cpu", relaxation=1.0,
                   settings=Settings(warm_start=0.0, sweeps=400))
-    before = world.state()
-    with pytest.raises(SimulationError) as err:
-        world.step(1)
-    text = str(err.value)
+    text = _failing_step_keeps_state(world)
     assert "non-finite" in text and "body" in text and "last good state" in text
-    after = world.state()
-    for key in before:
-        np.testing.assert_array_equal(before[key], after[key], err_msg=key)
     # the world is still usable: switch to a convergent solver and go on
     world.set_solver("mass-splitting", iterations=10)
     world.settings = Settings()
@@ -36,14 +41,8 @@ def test_runaway_body_stops_the_step_before_the_broadphase_overflows():
     world = World(scene, solver="pgs", iterations=4, arch="cpu")
     world.step(2)
     world.set_velocity([1], angular=[0.0, 0.0, 3e7])
-    before = world.state()
-    with pytest.raises(SimulationError) as err:
-        world.step(1)
-    text = str(err.value)
+    text = _failing_step_keeps_state(world)
     assert "body 1" in text and "broadphase cells" in text and "last good state" in text
-    after = world.state()
-    for key in before:
-        np.testing.assert_array_equal(before[key], after[key], err_msg=key)
     world.set_velocity([1], angular=[0.0, 0.0, 0.0])
     world.step(5)  # and the world goes on
     assert np.all(np.isfinite(world.state()["position"]))

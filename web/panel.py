@@ -121,6 +121,11 @@ class ControlPanel:
             self.record.on_click(self._on_record)
             self.record_status = gui.add_markdown("Not recording.")
     # ------------------------------------------------------------------ callbacks (viser's threads)
+    def _next_seed(self) -> int:
+        """The seed of the next debris drop or fracture: 1, 2, ... in the order they are asked for."""
+        self._seeds += 1
+        return self._seeds
+
     def _notify(self, event, title: str):
         client = getattr(event, "client", None)
 
@@ -189,18 +194,18 @@ class ControlPanel:
         iterations = int(self.iterations.value)
         ev = EventSpec(time=0.0, kind="solver", solver=name, iterations=iterations, options=options)
         self.sim.submit(f"solver {name} ({iterations} iterations{', shuffled' if options else ''})",
-                        lambda s: s.apply(_timed(s, ev)), on_error=self._notify(event, "Solver"))
+                        lambda s: s.apply(ev), on_error=self._notify(event, "Solver"))
 
     @_user_action
     def _on_iterations(self, event) -> None:
         ev = EventSpec(time=0.0, kind="iterations", iterations=int(self.iterations.value))
-        self.sim.submit(f"iterations {ev.iterations}", lambda s: s.apply(_timed(s, ev)),
+        self.sim.submit(f"iterations {ev.iterations}", lambda s: s.apply(ev),
                         on_error=self._notify(event, "Iterations"))
 
     @_user_action
     def _on_timestep(self, event) -> None:
         ev = EventSpec(time=0.0, kind="timestep", dt=TIME_STEPS[self.dt.value], substeps=int(self.substeps.value))
-        self.sim.submit(f"time step {self.dt.value} x {ev.substeps} substeps", lambda s: s.apply(_timed(s, ev)),
+        self.sim.submit(f"time step {self.dt.value} x {ev.substeps} substeps", lambda s: s.apply(ev),
                         on_error=self._notify(event, "Time step"))
 
     @_user_action
@@ -208,26 +213,25 @@ class ControlPanel:
         on = bool(self.gravity.value)
 
         def run(s):
-            g = s.gravity if on else np.zeros(3)
-            s.apply(_timed(s, EventSpec(time=0.0, kind="gravity", gravity=np.array(g, dtype=np.float64))))
+            g = s.world.scene.world.gravity if on else np.zeros(3)
+            s.apply(EventSpec(time=0.0, kind="gravity", gravity=np.array(g, dtype=np.float64)))
         self.sim.submit(f"gravity {'on' if on else 'off'}", run, on_error=self._notify(event, "Gravity"))
 
     @_user_action
     def _on_effects(self, event) -> None:
         effects = tuple(sorted(e for e, box in self.effects.items() if box.value))
         ev = EventSpec(time=0.0, kind="effects", effects=effects)
-        self.sim.submit(f"effects {list(effects)}", lambda s: s.apply(_timed(s, ev)),
+        self.sim.submit(f"effects {list(effects)}", lambda s: s.apply(ev),
                         on_error=self._notify(event, "Effects"))
 
     @_user_action
     def _on_drop(self, event) -> None:
         count, mix = int(self.debris_count.value), self.debris_mix.value
-        self._seeds += 1
-        seed = self._seeds
+        seed = self._next_seed()
 
         def run(s):
             bodies = debris_bodies(s.latest(), count, mix, seed)
-            s.apply(_timed(s, EventSpec(time=0.0, kind="drop", new_bodies=bodies)))
+            s.apply(EventSpec(time=0.0, kind="drop", new_bodies=bodies))
             return len(bodies)
         self.sim.submit(f"drop {count} {mix}", run, on_error=self._notify(event, "Drop debris"))
 
@@ -237,15 +241,14 @@ class ControlPanel:
         if body is None:
             return
         pieces, burst = int(self.pieces.value), float(self.burst.value)
-        self._seeds += 1
-        seed = self._seeds
+        seed = self._next_seed()
         self.selected = None
 
         def run(s):
             mass = s.world.body_specs[body].mass
             ev = EventSpec(time=0.0, kind="fracture", bodies=[body], pieces=pieces, seed=seed,
                            outward_impulse=burst * mass)
-            s.apply(_timed(s, ev))
+            s.apply(ev)
         self.sim.submit(f"fracture body {body} into {pieces} pieces", run, on_error=self._notify(event, "Fracture"))
 
     @_user_action
@@ -254,8 +257,7 @@ class ControlPanel:
         if body is None:
             return
         self.selected = None
-        self.sim.submit(f"remove body {body}", lambda s: s.apply(_timed(s, EventSpec(time=0.0, kind="remove",
-                                                                                        bodies=[body]))),
+        self.sim.submit(f"remove body {body}", lambda s: s.apply(EventSpec(time=0.0, kind="remove", bodies=[body])),
                         on_error=self._notify(event, "Remove"))
 
     @_user_action
@@ -364,8 +366,3 @@ class ControlPanel:
             self._shown[key] = value
             setattr(handle, prop, value)
 
-
-def _timed(sim, event: EventSpec) -> EventSpec:
-    """Stamp an interactive event with the world's current time (for recordings' logs)."""
-    event.time = sim.world.step_count * sim.world.dt
-    return event

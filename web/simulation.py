@@ -98,7 +98,6 @@ class Simulation:
         self.draw_contacts = False
         self.recorder = None
         self.last_error: str | None = None  # why the world paused itself (a diverged step)
-        self.gravity = None  # the scene's gravity, restored by "gravity on"
         self._queue: queue.Queue[Command] = queue.Queue()
         self._latest: Snapshot | None = None
         self._latest_lock = threading.Lock()
@@ -153,7 +152,6 @@ class Simulation:
         self.world = world
         if scene_path is not None:
             self.scene_path = Path(scene_path)
-        self.gravity = np.array(world.gravity, dtype=np.float64)
         self._world_id += 1
         self._generation += 1
         for series in self._history.values():
@@ -161,7 +159,9 @@ class Simulation:
         self._publish()
 
     def apply(self, event: EventSpec) -> None:
-        """An edit of the running world, logged like a scripted event (recordings replay it)."""
+        """An edit of the running world, logged like a scripted event (recordings replay it),
+        stamped with the world's current time."""
+        event.time = self.world.step_count * self.world.dt
         logged = len(self.world.applied_events)
         self.world.apply_event(event)
         self._note_body_list_edits(logged)
@@ -295,7 +295,7 @@ class Simulation:
             self._history["residual_rms"].append(max(m["residual_rms"], 1e-12))
         contacts = None
         if self.draw_contacts:
-            c = w.contacts()
+            c = w.contacts(("point", "normal"))
             contacts = {"point": c["point"].astype(np.float32), "normal": c["normal"].astype(np.float32)}
         snap = Snapshot(
             world_id=self._world_id,

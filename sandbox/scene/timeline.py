@@ -44,14 +44,14 @@ from .spec import DEFAULT_PIECES, MAX_PIECES, BodySpec, EventSpec, ShapeSpec
 
 EVENT_KINDS = ("drop", "set_velocity", "impulse", "remove", "solver", "iterations", "gravity", "effects",
                "fracture")
+_PUSHED = ("static bodies cannot be pushed, so {a} {kind} event cannot target it (make the body dynamic, "
+           "or remove it instead)")
 STATIC_REFUSALS = {
-    "set_velocity": lambda kind: (f"static bodies cannot be pushed, so {_article(kind)} {kind} event cannot "
-                                  "target it (make the body dynamic, or remove it instead)"),
-    "impulse": lambda kind: (f"static bodies cannot be pushed, so {_article(kind)} {kind} event cannot "
-                             "target it (make the body dynamic, or remove it instead)"),
-    "fracture": lambda kind: "static bodies cannot be fractured (make the body dynamic)",
+    "set_velocity": _PUSHED,
+    "impulse": _PUSHED,
+    "fracture": "static bodies cannot be fractured (make the body dynamic)",
 }
-"""Events that cannot target static bodies, and why (the message's tail)."""
+"""Events that cannot target static bodies, and why (the message's tail; ``{a} {kind}``: the event)."""
 MAX_ITERATIONS = 1_000_000
 
 
@@ -168,7 +168,8 @@ def _replay(events: list[_Parsed], bodies: list[BodySpec], mesh_names: set, drop
                 raise r.error(f"{label} is listed twice (also as bodies[{seen[gid]}])", key)
             seen[gid] = j
             if ev.kind in STATIC_REFUSALS and every[gid].static:
-                raise r.error(f"{label} is static: {STATIC_REFUSALS[ev.kind](ev.kind)}", key)
+                why = STATIC_REFUSALS[ev.kind].format(a=_article(ev.kind), kind=ev.kind)
+                raise r.error(f"{label} is static: {why}", key)
             resolved.append(index_of[gid])
         ev.bodies = resolved
         if ev.kind == "fracture":

@@ -117,7 +117,7 @@ def substep_parallel(s: ti.template(), rows: ti.template(), c: ti.template(), bo
         accumulate_points_loop(impacts, c, rows)
 
 
-def shared_phase_bound(schedule: int, warm: bool, iterations: int, sweeps: int) -> int:
+def shared_phase_bound(schedule: int, iterations: int, sweeps: int) -> int:
     """Most phases ``iterate_shared`` walks (its team needs a counter pair per phase)."""
     if schedule == PGS_COLORED:
         per_sweep = MAX_COLORS + 1  # every colour, then the overflow colour

@@ -38,7 +38,6 @@ Should a Taichi version split it otherwise, the team only gets smaller, never wr
 @ti.data_oriented
 class Team:
     def __init__(self, max_counters: int):
-        self.max_counters = max_counters
         self.claimed = ti.field(ti.i32, max_counters)  # items handed out, per phase and home range
         self.finished = ti.field(ti.i32, max_counters)  # items done, per phase
 
