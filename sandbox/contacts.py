@@ -190,7 +190,8 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
                 c.manifold[q] = mi
                 c.normal[q] = c.raw_normal[p]
                 c.point[q] = c.raw_point[s]
-                c.sep[q] = c.raw_sep[s]
+                # the narrowphase saw float32 positions; the bodies sit pos_rem further on
+                c.sep[q] = c.raw_sep[s] + c.raw_normal[p].dot(bodies.pos_rem[bb] - bodies.pos_rem[ba])
                 c.friction[q] = mu
                 c.restitution[q] = e
                 c.slop[q] = c.raw_slop[p]

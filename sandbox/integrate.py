@@ -26,7 +26,7 @@ to the host every step.
 import taichi as ti
 
 from .backend import serialize_light_loops
-from .math3d import any_nonfinite3, quat_mul, quat_normalize, quat_rotate, quat_rotate_inv
+from .math3d import any_nonfinite3, quat_mul, quat_normalize, quat_rotate, quat_rotate_inv, two_sum
 
 vec3 = ti.math.vec3
 vec4 = ti.math.vec4
@@ -131,12 +131,15 @@ def advance_pose(bodies: ti.template(), h: ti.f32, err: ti.template(), i: ti.i32
         if any_nonfinite3(v) or any_nonfinite3(w):
             ti.atomic_or(err.flags[None], ERR_VELOCITY)
             ti.atomic_min(err.body[None], i)
-        x = bodies.pos[i] + h * v
+        dx = h * v
+        x, rem = two_sum(bodies.pos[i], dx + bodies.pos_rem[i])
+        bodies.moved[i] += dx
         q, w1 = rotate_free(bodies.rot[i], w, bodies.inertia[i], bodies.inv_inertia[i], h)
         if any_nonfinite3(x) or any_nonfinite3(vec3(q[1], q[2], q[3])) or not (ti.abs(q[0]) <= 1.0):
             ti.atomic_or(err.flags[None], ERR_POSE)
             ti.atomic_min(err.body[None], i)
         bodies.pos[i] = x
+        bodies.pos_rem[i] = rem
         bodies.rot[i] = q
         bodies.ang_vel[i] = w1
 

@@ -9,6 +9,16 @@ mat3 = ti.math.mat3
 
 
 @ti.func
+def two_sum(a: vec3, b: vec3):
+    """(s, e) with s = fl(a + b) and s + e = a + b exactly (Knuth's TwoSum, any magnitudes;
+    needs IEEE arithmetic, which backend.py keeps by turning fast_math off)."""
+    s = a + b
+    b_part = s - a
+    a_part = s - b_part
+    return s, (a - a_part) + (b - b_part)
+
+
+@ti.func
 def quat_mul(a: vec4, b: vec4) -> vec4:
     return vec4(
         a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],

@@ -331,8 +331,9 @@ class World:
         """The current body list with positions and velocities read back from the device."""
         import dataclasses
 
-        st = self.state()
-        return [dataclasses.replace(b, position=st["position"][i].astype(np.float64),
+        st = self.state(("orientation", "linear_velocity", "angular_velocity"))
+        pos = self.buf.bodies.exact_positions()
+        return [dataclasses.replace(b, position=pos[i],
                                     orientation=st["orientation"][i].astype(np.float64),
                                     linear_velocity=st["linear_velocity"][i].astype(np.float64),
                                     angular_velocity=st["angular_velocity"][i].astype(np.float64))
@@ -536,8 +537,9 @@ class World:
         if entries <= b.bp.entry_capacity and pairs <= b.bp.pair_capacity:
             return False
         restore_good_state(b.bodies)
-        state = {k: f.to_numpy() for k, f in (("pos", b.bodies.pos), ("rot", b.bodies.rot),
-                                              ("lin_vel", b.bodies.lin_vel), ("ang_vel", b.bodies.ang_vel))}
+        state = {k: f.to_numpy() for k, f in (("rot", b.bodies.rot), ("lin_vel", b.bodies.lin_vel),
+                                              ("ang_vel", b.bodies.ang_vel))}
+        state["pos"] = b.bodies.exact_positions()
         n = len(self._host.body_arrays["inv_mass"])
         for k, v in state.items():
             self._host.body_arrays[k] = v[:n]

@@ -148,8 +148,8 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
     b = c.body_b[q]
     ra = rows.ra[q]
     rb = rows.rb[q]
-    da = bodies.pos[a] - bodies.good_pos[a] + quat_rotate(bodies.rot[a], rows.ra_body[q]) - ra
-    db = bodies.pos[b] - bodies.good_pos[b] + quat_rotate(bodies.rot[b], rows.rb_body[q]) - rb
+    da = bodies.moved[a] + quat_rotate(bodies.rot[a], rows.ra_body[q]) - ra
+    db = bodies.moved[b] + quat_rotate(bodies.rot[b], rows.rb_body[q]) - rb
     return c.sep[q] + c.normal[q].dot(db - da)
 
 
