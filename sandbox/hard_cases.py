@@ -41,6 +41,7 @@ class Run:
     ke: list = field(default_factory=list)  # [J]
     max_penetration: list = field(default_factory=list)  # [m]
     max_speed: list = field(default_factory=list)  # [m/s]
+    peak_sideways: np.ndarray | None = None  # [m] per body, the largest horizontal distance from start
     start: dict = field(default_factory=dict)  # state() before the first step
     settled: dict = field(default_factory=dict)  # state() after SETTLE_STEPS (method.md M7: drift from T_settle)
     final: dict = field(default_factory=dict)  # state() after the last step
@@ -56,10 +57,11 @@ class Case:
 
 
 def _stack_drift(run: Run, top: int, tol: float, pen_tol: float):
-    drift = float(np.linalg.norm(run.final["position"][top, :2] - run.start["position"][top, :2]))
+    """A stack that sways passes through its start now and then: the drift is the peak."""
+    drift = float(run.peak_sideways[top])
     pen = max(run.max_penetration[len(run.max_penetration) // 2:])
     ok = drift < tol and pen < pen_tol
-    return ok, f"top drift {1e3 * drift:.1f} mm, late max pen {1e3 * pen:.1f} mm"
+    return ok, f"top drift up to {1e3 * drift:.1f} mm, late max pen {1e3 * pen:.1f} mm"
 
 
 def tall_stack(n=20) -> Case:
@@ -194,6 +196,8 @@ def run_case(case: Case, solver: str, iterations: int, steps: int | None = None)
             run.ke.append(m["kinetic_energy"])
             run.max_penetration.append(m["max_penetration"])
             run.max_speed.append(float(np.linalg.norm(st["linear_velocity"], axis=1).max()))
+            sideways = np.linalg.norm(st["position"][:, :2] - run.start["position"][:, :2], axis=1)
+            run.peak_sideways = sideways if run.peak_sideways is None else np.maximum(run.peak_sideways, sideways)
         run.final = world.state()
     except SimulationError as exc:
         return False, f"stopped: {exc}"
