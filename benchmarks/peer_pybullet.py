@@ -56,7 +56,8 @@ def main() -> None:
             ti.sync()
         return run
 
-    engines = {"pybullet " + pybullet_version(): step_pybullet, **{s: stepper(w) for s, w in worlds.items()}}
+    pb_name = "pybullet " + pybullet_version()
+    engines = {pb_name: step_pybullet, **{s: stepper(w) for s, w in worlds.items()}}
     for run in engines.values():
         run(a.settle)
     rates = {name: [] for name in engines}
@@ -68,13 +69,12 @@ def main() -> None:
     ke = {name: [] for name in engines}
     for _ in range(60):
         step_pybullet(1)
-        ke[next(iter(engines))].append(pybullet_ke(pb, cid, ids, masses, inertias))
+        ke[pb_name].append(pybullet_ke(pb, cid, ids, masses, inertias))
         for s, w in worlds.items():
             w.step(1)
             ke[s].append(w.metrics()["kinetic_energy"])
     print(f"{a.scene}, {a.iterations} iterations, settle {a.settle}, {a.rounds} rounds of {a.steps} timed steps "
           "per engine, interleaved")
-    pb_name = next(iter(engines))
     pb_rates = np.asarray(rates[pb_name])
     for name in engines:
         r = np.asarray(rates[name])

@@ -26,7 +26,6 @@ import numpy as np
 os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
 
 
-
 def grid_scene(n: int):
     from sandbox import Scene
 

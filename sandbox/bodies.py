@@ -9,8 +9,10 @@
   motion away, the pile freezes against springs still pushing it, and the solver
   keeps a velocity floor that only looks like jitter (measured on the 210-box
   pyramid: 1e-4 J of kinetic energy that was rounding, docs/method-notes.md);
-* motion since the step began (``moved``), summed from the substeps' updates, which
-  the solver's separation update reads;
+* motion since the step began (``moved``), summed from the substeps' updates: derivable
+  from the two position pairs, but kept because the relax sweep's separation update reads
+  it for every contact point (one vector instead of four) and, being small, float32 holds
+  it to full precision;
 * derived per step: world inverse inertia, read by the solver's inner loop;
 * last good state: a device-side copy taken at the start of every step, restored
   when a step produces non-finite numbers (the world keeps its last good state).
@@ -58,12 +60,13 @@ class Bodies:
         if n > self.capacity:
             raise ValueError("body capacity exceeded")
         pos64 = np.asarray(arrays["pos"], dtype=np.float64)
-        rem = (pos64 - pos64.astype(np.float32)) * (np.asarray(arrays["inv_mass"]) > 0)[:, None]
-        for name, value in (("inv_mass", None), ("inertia", None), ("inv_inertia", None), ("pos", None),
-                            ("rot", None), ("lin_vel", None), ("ang_vel", None), ("pos_rem", rem)):
+        columns = {name: arrays[name] for name in ("inv_mass", "inertia", "inv_inertia", "pos", "rot", "lin_vel",
+                                                   "ang_vel")}
+        columns["pos_rem"] = (pos64 - pos64.astype(np.float32)) * (np.asarray(arrays["inv_mass"]) > 0)[:, None]
+        for name, value in columns.items():
             field = getattr(self, name)
             full = field.to_numpy()
-            full[:n] = arrays[name] if value is None else value
+            full[:n] = value
             field.from_numpy(full.astype(np.float32))
         self.count[None] = n
         update_world_inertia(self)
@@ -78,9 +81,17 @@ class Bodies:
         return {k: getattr(self, self.STATE_FIELDS[k]).to_numpy()[:n] for k in (fields or self.STATE_FIELDS)}
 
     def exact_positions(self) -> np.ndarray:
-        """Positions with their remainders, float64 (N, 3): what a rebuild uploads again."""
+        """Positions with their remainders, float64 (N, 3)."""
         n = int(self.count[None])
         return self.pos.to_numpy()[:n].astype(np.float64) + self.pos_rem.to_numpy()[:n]
+
+    def host_state(self) -> dict[str, np.ndarray]:
+        """The state under ``upload``'s names, float64, positions exact: what a rebuild
+        uploads again, so that it loses nothing."""
+        n = int(self.count[None])
+        state = {k: getattr(self, k).to_numpy()[:n].astype(np.float64) for k in ("rot", "lin_vel", "ang_vel")}
+        state["pos"] = self.exact_positions()
+        return state
 
 
 @ti.func

@@ -331,12 +331,9 @@ class World:
         """The current body list with positions and velocities read back from the device."""
         import dataclasses
 
-        st = self.state(("orientation", "linear_velocity", "angular_velocity"))
-        pos = self.buf.bodies.exact_positions()
-        return [dataclasses.replace(b, position=pos[i],
-                                    orientation=st["orientation"][i].astype(np.float64),
-                                    linear_velocity=st["linear_velocity"][i].astype(np.float64),
-                                    angular_velocity=st["angular_velocity"][i].astype(np.float64))
+        st = self.buf.bodies.host_state()
+        return [dataclasses.replace(b, position=st["pos"][i], orientation=st["rot"][i],
+                                    linear_velocity=st["lin_vel"][i], angular_velocity=st["ang_vel"][i])
                 for i, b in enumerate(self._bodies)]
 
     def _rebuild(self, bodies: list) -> None:
@@ -537,11 +534,8 @@ class World:
         if entries <= b.bp.entry_capacity and pairs <= b.bp.pair_capacity:
             return False
         restore_good_state(b.bodies)
-        state = {k: f.to_numpy() for k, f in (("rot", b.bodies.rot), ("lin_vel", b.bodies.lin_vel),
-                                              ("ang_vel", b.bodies.ang_vel))}
-        state["pos"] = b.bodies.exact_positions()
         n = len(self._host.body_arrays["inv_mass"])
-        for k, v in state.items():
+        for k, v in b.bodies.host_state().items():
             self._host.body_arrays[k] = v[:n]
         caps = b.caps.grown(grid_entries=max(b.caps.grid_entries, 2 * entries), pairs=max(b.caps.pairs, 2 * pairs))
         self.close()

@@ -77,6 +77,7 @@ class WorldView:
         for key in list(self._batches):
             if key not in groups:
                 self._batches.pop(key).handle.remove()
+                self._meshes.pop(key, None)  # removed or fractured hulls do not come back
         for n, (key, members) in enumerate(sorted(groups.items(), key=lambda kv: kv[1][0])):
             idx = np.asarray(members, dtype=np.int64)
             if key not in self._meshes:

@@ -287,7 +287,7 @@ class Simulation:
     def _publish(self, new_frame: bool = False) -> None:
         self._last_publish = time.perf_counter()
         w = self.world
-        st = w.state()
+        st = w.state(("position", "orientation", "linear_velocity"))
         m = w.metrics()
         if new_frame:
             self._history["step"].append(float(w.step_count))
