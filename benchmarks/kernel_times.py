@@ -45,6 +45,8 @@ def main() -> None:
     ap.add_argument("--settle", type=int, default=300)
     ap.add_argument("--steps", type=int, default=30)
     ap.add_argument("--launch", default="auto", help="Settings.iteration_launch")
+    ap.add_argument("--reuse-distance", type=float, default=None,
+                    help="Settings.manifold_reuse_distance [m] (0: every pair through SAT and clipping)")
     a = ap.parse_args()
     total = collections.defaultdict(float)
     timing = [False]
@@ -74,8 +76,11 @@ def main() -> None:
                 wrap(mod, name)
     from sandbox import Settings
 
+    settings = Settings(iteration_launch=a.launch)
+    if a.reuse_distance is not None:
+        settings = settings.replace(manifold_reuse_distance=a.reuse_distance)
     world = World(Scene.load(resolve_scene(a.scene)), solver=a.solver, iterations=a.iterations, arch="cpu",
-                  settings=Settings(iteration_launch=a.launch))
+                  settings=settings)
     world.step(a.settle)
     b = world.buf
     print(f"{a.scene} {a.solver} {a.iterations} iterations, after {a.settle} steps: pairs {b.bp.pair_total[None]}, "

@@ -20,6 +20,7 @@ from .broadphase import Broadphase
 from .contacts import Contacts
 from .impact import ImpactMonitor
 from .integrate import ErrorFlags
+from .manifold_cache import ManifoldCache
 from .metrics import MetricBuffer
 from .persistence import ContactHistory
 from .shapes import PolytopePool, ShapeTable
@@ -82,6 +83,7 @@ class BufferSet:
         self.impacts = ImpactMonitor(point_capacity, caps.bodies)
         self.errors = ErrorFlags()
         self.metrics = MetricBuffer()
+        self.manifold_cache = ManifoldCache(caps.pairs, caps.shapes)
 
 
 _free: dict[Capacities, list[BufferSet]] = {}

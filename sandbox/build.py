@@ -16,6 +16,7 @@ import numpy as np
 
 from .broadphase import build_static_grid, compute_all_aabbs
 from .buffers import BufferSet, Capacities
+from .manifold_cache import clear_cache
 from .persistence import clear_history
 from .scene.spec import Scene
 from .settings import Settings
@@ -231,4 +232,5 @@ def upload(host: HostWorld, buffers: BufferSet, margin: float) -> None:
     buffers.bp.cell_size[None] = host.cell_size
     compute_all_aabbs(buffers.bp, buffers.shapes, buffers.bodies, margin)
     clear_history(buffers.history)
+    clear_cache(buffers.manifold_cache)
     buffers.errors.clear()  # a pooled buffer may carry the flags of its previous world

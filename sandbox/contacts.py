@@ -17,8 +17,9 @@ import taichi as ti
 from .backend import serialize_light_loops
 from .math3d import quat_mul, quat_rotate
 from .narrowphase import collide_kinds
-from .narrowphase.manifold import MAX_POINTS, ShapePose
+from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose
 from .broadphase import swept_distance
+from .manifold_cache import close_step, find_reusable, remember_manifold, reuse_manifold
 from .prefix_sum import Scanner, exclusive_scan
 from .shapes import PLANE
 
@@ -126,7 +127,8 @@ def partner_material(shapes: ti.template(), partner: ti.i32):
 
 @ti.func
 def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
-                  pool: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32, kinds: ti.template()):
+                        pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
+                        reuse_d2: ti.f32, reuse_cos: ti.f32, kinds: ti.template()):
     """Narrowphase over every candidate pair, then pack the points and manifolds.
 
     The pair's margin is the speculative distance (capped at a quarter of the smaller
@@ -135,8 +137,11 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
     the solver closes the gap exactly (speculative contacts: no tunnelling). The
     slop is likewise capped at a tenth of the smaller bound. ``kinds`` (the shape
     kinds the scene contains, a static tuple) keeps routines for absent kinds out of
-    the compiled kernel (house rule 8)."""
+    the compiled kernel (house rule 8). A pair whose relative pose moved less than
+    ``reuse_d2`` (squared distance) and whose relative rotation's half-angle cosine
+    stays above ``reuse_cos`` takes last step's manifold back (manifold_cache.py)."""
     n_pairs = ti.min(bp.pair_total[None], bp.pair_capacity)
+    cache.reused[None] = 0
     for p in range(n_pairs):
         i = bp.pair_a[p]
         j = bp.pair_b[p]
@@ -152,7 +157,14 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
             swept += swept_distance(shapes, bodies, j, h)
         pair_margin = ti.min(margin, 0.25 * small) + swept
         c.raw_slop[p] = ti.min(slop, 0.1 * small)
-        m = collide_kinds(pool, a, b, pair_margin, kinds)
+        m = Manifold(count=0, normal=vec3(0.0, 0.0, 1.0))
+        o = find_reusable(cache, i, j, a, b, reuse_d2, reuse_cos)
+        if o >= 0:
+            m = reuse_manifold(cache, o, p, a, b)
+            ti.atomic_add(cache.reused[None], 1)
+        else:
+            m = collide_kinds(pool, a, b, pair_margin, kinds)
+            remember_manifold(cache, p, j, m, a, b)
         c.raw_count[p] = m.count
         c.has_points[p] = 1 if m.count > 0 else 0
         c.raw_normal[p] = m.normal
@@ -202,9 +214,11 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
         p1 = bp.pair_start[k + 1]
         c.shape_first[i] = c.point_start[ti.min(p0, n_pairs)]
         c.shape_last[i] = c.point_start[ti.min(p1, n_pairs)]
+    close_step(cache, bp, shapes, n_pairs)
 
 
 @ti.kernel
 def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
-                  pool: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32, kinds: ti.template()):
-    collide_pairs_loops(c, bp, shapes, bodies, pool, margin, slop, h, kinds)
+                  pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
+                  reuse_d2: ti.f32, reuse_cos: ti.f32, kinds: ti.template()):
+    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_cos, kinds)

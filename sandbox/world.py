@@ -486,9 +486,10 @@ class World:
                 store_contacts(b.history, b.contacts, b.rows, b.shapes, k)
         flags = int(b.errors.flags[None])
         if flags:
+            from .broadphase import MAX_SPAN_CELLS
+            from .manifold_cache import clear_cache
             from .persistence import clear_history
 
-            from .broadphase import MAX_SPAN_CELLS
             from .integrate import ERR_POSE, ERR_VELOCITY
 
             body = int(b.errors.body[None])
@@ -504,6 +505,7 @@ class World:
                            "(the solver diverged, or the body is far larger than the typical one)")
             restore_good_state(b.bodies)
             clear_history(b.history)  # this step's impulses are not usable either: no warm start from them
+            clear_cache(b.manifold_cache)  # nor its manifolds (a replay from the good state would not have them)
             raise SimulationError(f"step {self.step_count}: {problem}; the world was restored to its last good state")
 
     def _collide(self) -> None:
@@ -515,14 +517,15 @@ class World:
             build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, self._h, b.errors)
             find_pairs(b.bp, b.shapes)
         with p.stage("narrowphase"):
-            collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, margin, self.settings.slop, self._h, self.kinds)
+            collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, self.settings.slop,
+                          self._h, *self.settings.manifold_reuse_bounds(), self.kinds)
 
     def _begin_and_collide(self) -> None:
         from .step_kernels import begin_and_collide
 
         b, st = self.buf, self.settings
-        begin_and_collide(b.bodies, b.errors, b.bp, b.shapes, b.contacts, b.pool, st.contact_margin, st.slop,
-                          self._h, self.kinds)
+        begin_and_collide(b.bodies, b.errors, b.bp, b.shapes, b.contacts, b.pool, b.manifold_cache, st.contact_margin,
+                          st.slop, self._h, *st.manifold_reuse_bounds(), self.kinds)
 
     def _grow_if_needed(self) -> bool:
         """After an overflow: move to a bigger buffer class, keeping the body state, and say so."""
@@ -662,6 +665,7 @@ class World:
             "mean_penetration": float(v[SUM_PEN] / n) if n else 0.0,
             "contacts": n,
             "manifolds": int(b.contacts.manifold_count[None]),
+            "manifolds_reused": int(b.manifold_cache.reused[None]),
             "residual_rms": float(np.sqrt(v[RES_SQ_SUM] / (3 * n))) if n else 0.0,
             "residual_max": float(np.sqrt(v[RES_MAX_SQ])),
         }

@@ -1,0 +1,147 @@
+"""Manifold reuse: a shape pair that has barely moved relative to itself keeps its
+contact points instead of running SAT and clipping again (Jolt's body pair cache,
+``ContactConstraintManager``'s ``mBodyPairCache``).
+
+A settled pile is almost all resting pairs, and for them the narrowphase recomputes
+the same manifold every step. So every manifold found is remembered with the pose
+of shape b in shape a's frame at that moment, its normal in a's frame, and each
+point as two anchors, the point on a's surface in a's frame and the point on b's
+surface in b's frame. Next step, a pair whose relative pose is still within
+``Settings.manifold_reuse_distance`` and ``manifold_reuse_angle`` of that
+remembered pose takes the manifold back: the anchors ride with their bodies, the
+normal with a, and the separation is measured again along it, so depth and its
+rate stay exact for the contact points kept; what reuse skips is only finding new
+points (a point appearing or clipping moving), which needs more relative motion
+than the tolerance. The remembered pose is the one the manifold was found at, not
+last step's, so reuse never drifts further than the tolerance. Only pairs that had
+points are reused; feature ids are kept, so warm starting matches exactly.
+
+Storage is double-buffered by pair slot (``parity`` says which half is this step's),
+and each dynamic shape's pairs are one contiguous range, as in the broadphase's pair
+list, so the lookup is a short scan of the shape's old pairs. No atomics but an
+integer count: deterministic.
+"""
+
+import taichi as ti
+
+from .backend import serialize_light_loops
+from .math3d import quat_conj, quat_mul, quat_rotate, quat_rotate_inv
+from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose, manifold_point
+
+vec3 = ti.math.vec3
+vec4 = ti.math.vec4
+
+
+@ti.data_oriented
+class ManifoldCache:
+    def __init__(self, pair_capacity: int, shape_capacity: int):
+        pc = max(16, pair_capacity)
+        sc = max(1, shape_capacity)
+        self.parity = ti.field(ti.i32, ())  # which half holds the pairs being written this step
+        self.reused = ti.field(ti.i32, ())  # pairs that took their manifold back, last narrowphase
+        self.partner = ti.field(ti.i32, (2, pc))
+        self.count = ti.field(ti.i32, (2, pc))
+        self.rel_pos = ti.Vector.field(3, ti.f32, (2, pc))  # b's origin in a's frame when found [m]
+        self.rel_rot = ti.Vector.field(4, ti.f32, (2, pc))  # b's orientation in a's frame when found
+        self.normal = ti.Vector.field(3, ti.f32, (2, pc))  # in a's frame
+        self.on_a = ti.Vector.field(3, ti.f32, (2, pc * MAX_POINTS))  # a's surface point, a's frame [m]
+        self.on_b = ti.Vector.field(3, ti.f32, (2, pc * MAX_POINTS))  # b's surface point, b's frame [m]
+        self.feature = ti.field(ti.i32, (2, pc * MAX_POINTS))
+        self.first = ti.field(ti.i32, (2, sc))  # a dynamic shape's pairs: [first, last) of its half
+        self.last = ti.field(ti.i32, (2, sc))
+
+
+@ti.kernel
+def clear_cache(cache: ti.template()):
+    """Forget every manifold (a new world, or a state the remembered ones do not belong to)."""
+    cache.parity[None] = 0
+    cache.reused[None] = 0
+    for h, i in cache.first:
+        cache.first[h, i] = 0
+        cache.last[h, i] = 0
+
+
+@ti.func
+def relative_pose(a: ShapePose, b: ShapePose):
+    return quat_rotate_inv(a.rot, b.pos - a.pos), quat_mul(quat_conj(a.rot), b.rot)
+
+
+@ti.func
+def find_reusable(cache: ti.template(), i: ti.i32, j: ti.i32, a: ShapePose, b: ShapePose,
+                  max_d2: ti.f32, min_cos_half: ti.f32) -> ti.i32:
+    """Slot in last step's half of the manifold of pair (i, j), if it had points and the
+    pair's relative pose is still within the tolerance of the one it was found at; else -1."""
+    old = 1 - cache.parity[None]
+    found = -1
+    for o in range(cache.first[old, i], cache.last[old, i]):
+        if found < 0 and cache.partner[old, o] == j:
+            found = o
+    slot = -1
+    if found >= 0 and cache.count[old, found] > 0:
+        p_ba, q_ba = relative_pose(a, b)
+        moved2 = (p_ba - cache.rel_pos[old, found]).norm_sqr()
+        # |q1 . q2| = cos(half the angle between the orientations), either sign of q
+        turned_cos = ti.abs(q_ba.dot(cache.rel_rot[old, found]))
+        if moved2 < max_d2 and turned_cos > min_cos_half:
+            slot = found
+    return slot
+
+
+@ti.func
+def reuse_manifold(cache: ti.template(), o: ti.i32, p: ti.i32, a: ShapePose, b: ShapePose) -> Manifold:
+    """Last step's manifold in slot o at the shapes' current poses; carried to slot p."""
+    old = 1 - cache.parity[None]
+    cur = cache.parity[None]
+    n = quat_rotate(a.rot, cache.normal[old, o])
+    m = Manifold(count=cache.count[old, o], normal=n)
+    for k in range(m.count):
+        so = MAX_POINTS * o + k
+        ra = quat_rotate(a.rot, cache.on_a[old, so])
+        gap = (b.pos - a.pos) + quat_rotate(b.rot, cache.on_b[old, so]) - ra  # differences first: float32 at 20 m
+        mid = a.pos + ra + 0.5 * gap
+        for c in ti.static(range(3)):
+            m.points[k, c] = mid[c]
+        m.separation[k] = n.dot(gap)
+        m.feature[k] = cache.feature[old, so]
+        sp = MAX_POINTS * p + k
+        cache.on_a[cur, sp] = cache.on_a[old, so]
+        cache.on_b[cur, sp] = cache.on_b[old, so]
+        cache.feature[cur, sp] = cache.feature[old, so]
+    cache.partner[cur, p] = cache.partner[old, o]
+    cache.count[cur, p] = m.count
+    cache.rel_pos[cur, p] = cache.rel_pos[old, o]  # the pose it was found at, so reuse cannot drift
+    cache.rel_rot[cur, p] = cache.rel_rot[old, o]
+    cache.normal[cur, p] = cache.normal[old, o]
+    return m
+
+
+@ti.func
+def remember_manifold(cache: ti.template(), p: ti.i32, j: ti.i32, m: Manifold, a: ShapePose, b: ShapePose):
+    """Keep a freshly found manifold of pair slot p (partner j) for the next step."""
+    cur = cache.parity[None]
+    p_ba, q_ba = relative_pose(a, b)
+    cache.partner[cur, p] = j
+    cache.count[cur, p] = m.count
+    cache.rel_pos[cur, p] = p_ba
+    cache.rel_rot[cur, p] = q_ba
+    cache.normal[cur, p] = quat_rotate_inv(a.rot, m.normal)
+    for k in range(m.count):
+        x = manifold_point(m, k)
+        half = 0.5 * m.separation[k] * m.normal
+        sp = MAX_POINTS * p + k
+        cache.on_a[cur, sp] = quat_rotate_inv(a.rot, x - half - a.pos)
+        cache.on_b[cur, sp] = quat_rotate_inv(b.rot, x + half - b.pos)
+        cache.feature[cur, sp] = m.feature[k]
+
+
+@ti.func
+def close_step(cache: ti.template(), bp: ti.template(), shapes: ti.template(), n_pairs: ti.i32):
+    """Record each dynamic shape's range of pair slots in this step's half, then hand the
+    halves over: what was written becomes what the next step reads."""
+    cur = cache.parity[None]
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(shapes.dynamic_count[None]):
+        i = shapes.dynamic_ids[k]
+        cache.first[cur, i] = ti.min(bp.pair_start[k], n_pairs)
+        cache.last[cur, i] = ti.min(bp.pair_start[k + 1], n_pairs)
+    cache.parity[None] = 1 - cur

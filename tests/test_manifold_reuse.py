@@ -1,0 +1,88 @@
+"""Manifold reuse (sandbox/manifold_cache.py): resting pairs keep their contact points,
+moving pairs go through SAT and clipping, and a kept manifold is the one the
+narrowphase would find at the same pose."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from sandbox import Scene, Settings, World
+from sandbox.errors import SandboxError
+
+from .conftest import box_body, scene_dict
+
+
+def _stack_scene():
+    """A 3-box stack beside a box lying across two others: face, and edge-on-face, contacts."""
+    bodies = [box_body([0.0, 0.0, 0.5 + 1.0 * k]) for k in range(3)]
+    bodies += [box_body([3.0, -0.6, 0.25], half=(0.25, 0.25, 0.25)), box_body([3.0, 0.6, 0.25], half=(0.25, 0.25, 0.25)),
+               box_body([3.0, 0.0, 0.65], half=(0.15, 1.0, 0.15), orientation=[0.9238795, 0.0, 0.3826834, 0.0])]
+    return Scene.from_dict(scene_dict(bodies, solver="mass-splitting", iterations=15))
+
+
+def test_a_resting_scene_reuses_every_manifold_and_they_match_a_fresh_narrowphase():
+    scene = _stack_scene()
+    world = World(scene, arch="cpu")
+    world.step(120)
+    # a twin world at exactly this state (positions with their remainders) has no manifolds to reuse
+    twin = World(dataclasses.replace(scene, bodies=world._live_specs()), arch="cpu")
+    world.step(1)
+    twin.step(1)
+    m = world.metrics()
+    assert m["manifolds"] == 7  # 3 stack pairs, 2 boxes on the plane, the bar on both boxes
+    assert m["manifolds_reused"] == m["manifolds"]
+    assert twin.metrics()["manifolds_reused"] == 0
+    kept, fresh = world.contacts(), twin.contacts()
+    for key in ("body_a", "body_b", "manifold"):
+        np.testing.assert_array_equal(kept[key], fresh[key])
+    # the kept points and normals ride with their bodies: they differ from a fresh clip by at
+    # most the relative motion since they were found, which reuse bounds (the bar, 1.03 m
+    # from its centre to a corner, turned ~6e-4 rad while settling); the depths are measured
+    # again, not remembered, so they agree to float32 rounding
+    s = Settings()
+    np.testing.assert_allclose(kept["point"], fresh["point"], rtol=0,
+                               atol=s.manifold_reuse_distance + 1.05 * s.manifold_reuse_angle)
+    np.testing.assert_allclose(kept["normal"], fresh["normal"], rtol=0, atol=s.manifold_reuse_angle)
+    np.testing.assert_allclose(kept["separation"], fresh["separation"], rtol=0, atol=1e-6)
+
+
+def test_a_sliding_box_goes_through_the_narrowphase_every_step_until_it_stops():
+    body = box_body([0.0, 0.0, 0.5], linear_velocity=[2.0, 0.0, 0.0])
+    world = World(Scene.from_dict(scene_dict([body], solver="pgs", iterations=10)), arch="cpu")
+    for _ in range(20):  # friction 0.5 stops 2 m/s in ~0.41 s (24 steps); until then >1 mm per step
+        world.step(1)
+        assert world.metrics()["manifolds_reused"] == 0
+    world.step(60)
+    assert np.linalg.norm(world.state()["linear_velocity"][0]) < 1e-3
+    assert world.metrics()["manifolds_reused"] == world.metrics()["manifolds"] == 1
+
+
+def test_reuse_off_and_on_agree_on_a_resting_stack():
+    """Reuse changes how contacts are found, not the physics: the stack settles to the same
+    heights either way (to well under the slop)."""
+    scene = _stack_scene()
+    on = World(scene, arch="cpu")
+    off = World(scene, arch="cpu", settings=Settings(manifold_reuse_distance=0.0))
+    on.step(300)
+    off.step(300)
+    assert off.metrics()["manifolds_reused"] == 0
+    np.testing.assert_allclose(on.state()["position"], off.state()["position"], rtol=0, atol=5e-5)
+    assert on.metrics()["kinetic_energy"] < 1e-6 and off.metrics()["kinetic_energy"] < 1e-6
+
+
+def test_a_rebuild_forgets_the_manifolds():
+    world = World(_stack_scene(), arch="cpu")
+    world.step(60)
+    assert world.metrics()["manifolds_reused"] == 7
+    world.add_bodies([dataclasses.replace(world.body_specs[0], position=np.array([-5.0, 0.0, 0.5]))])
+    world.step(1)
+    assert world.metrics()["manifolds_reused"] == 0
+
+
+@pytest.mark.parametrize("value", [-0.001, float("nan"), float("inf")])
+def test_bad_reuse_tolerances_are_refused(value):
+    with pytest.raises(SandboxError, match="manifold_reuse_distance"):
+        Settings(manifold_reuse_distance=value)
+    with pytest.raises(SandboxError, match="manifold_reuse_angle"):
+        Settings(manifold_reuse_angle=value)
