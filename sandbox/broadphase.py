@@ -69,6 +69,11 @@ class Broadphase:
         self.entry_shape = ti.field(ti.i32, self.entry_capacity)
         self.entry_bucket = ti.field(ti.i32, self.entry_capacity)
         self.sorted_shape = ti.field(ti.i32, self.entry_capacity)
+        # each entry's shape bounds and body beside it, so the pair search reads its candidates
+        # in order instead of jumping to every candidate's AABB (~half the search's time)
+        self.sorted_lo = ti.Vector.field(3, ti.f32, self.entry_capacity)
+        self.sorted_hi = ti.Vector.field(3, ti.f32, self.entry_capacity)
+        self.sorted_body = ti.field(ti.i32, self.entry_capacity)
         self.bucket_count = ti.field(ti.i32, self.hash_size + 1)
         self.bucket_start = ti.field(ti.i32, self.hash_size + 1)
         self.bucket_fill = ti.field(ti.i32, self.hash_size)
@@ -242,7 +247,14 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
         bp.sorted_shape[slot] = bp.entry_shape[e]
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for h in range(bp.hash_size):
-        sort_range(bp.sorted_shape, bp.bucket_start[h], bp.bucket_start[h + 1])  # the fill is in thread order
+        e0 = bp.bucket_start[h]
+        e1 = ti.min(bp.bucket_start[h + 1], bp.entry_capacity)
+        sort_range(bp.sorted_shape, e0, e1)  # the fill is in thread order
+        for e in range(e0, e1):
+            j = bp.sorted_shape[e]
+            bp.sorted_lo[e] = bp.aabb_min[j]
+            bp.sorted_hi[e] = bp.aabb_max[j]
+            bp.sorted_body[e] = shapes.body[j]
 
 
 @ti.kernel
@@ -295,12 +307,15 @@ def _visit_grid(bp: ti.template(), shapes: ti.template(), i: ti.i32, cell: ti.f3
                 h = cell_hash(c, mask)
                 for e in range(starts[h], starts[h + 1]):
                     j = entries[e]
-                    wanted = True
                     if ti.static(dynamic):
-                        wanted = j > i and shapes.body[j] != body_i
-                    if wanted and _overlap(bp, i, j):
-                        ref = _cell_coord(ti.max(lo, bp.aabb_min[j]), cell)
-                        if (ref == c).all():
+                        if j > i and bp.sorted_body[e] != body_i:
+                            lo_j = bp.sorted_lo[e]
+                            if (lo <= bp.sorted_hi[e]).all() and (lo_j <= hi).all():
+                                if (_cell_coord(ti.max(lo, lo_j), cell) == c).all():
+                                    _emit(bp, i, j, base, count, write)
+                                    count += 1
+                    elif _overlap(bp, i, j):
+                        if (_cell_coord(ti.max(lo, bp.aabb_min[j]), cell) == c).all():
                             _emit(bp, i, j, base, count, write)
                             count += 1
     return count
