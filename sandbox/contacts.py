@@ -142,6 +142,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
     stays above ``reuse_cos`` takes last step's manifold back (manifold_cache.py)."""
     n_pairs = ti.min(bp.pair_total[None], bp.pair_capacity)
     cache.reused[None] = 0
+    cache.reused_pairs[None] = 0
     for p in range(n_pairs):
         i = bp.pair_a[p]
         j = bp.pair_b[p]
@@ -158,10 +159,12 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
         pair_margin = ti.min(margin, 0.25 * small) + swept
         c.raw_slop[p] = ti.min(slop, 0.1 * small)
         m = Manifold(count=0, normal=vec3(0.0, 0.0, 1.0))
-        o = find_reusable(cache, i, j, a, b, reuse_d2, reuse_cos)
+        o = find_reusable(cache, i, j, a, b, pair_margin, reuse_d2, reuse_cos)
         if o >= 0:
             m = reuse_manifold(cache, o, p, a, b)
-            ti.atomic_add(cache.reused[None], 1)
+            ti.atomic_add(cache.reused_pairs[None], 1)
+            if m.count > 0:
+                ti.atomic_add(cache.reused[None], 1)
         else:
             m = collide_kinds(pool, a, b, pair_margin, kinds)
             remember_manifold(cache, p, j, m, a, b)

@@ -13,8 +13,14 @@ normal with a, and the separation is measured again along it, so depth and its
 rate stay exact for the contact points kept; what reuse skips is only finding new
 points (a point appearing or clipping moving), which needs more relative motion
 than the tolerance. The remembered pose is the one the manifold was found at, not
-last step's, so reuse never drifts further than the tolerance. Only pairs that had
-points are reused; feature ids are kept, so warm starting matches exactly.
+last step's, so reuse never drifts further than the tolerance. Feature ids are kept,
+so warm starting matches exactly.
+
+A pair with no points is skipped too while a bound says it still cannot touch: the
+narrowphase reports a lower bound of the distance (``Manifold.gap``: SAT's separation,
+or the bounding spheres'), and relative motion brings any point of b at most its
+origin's displacement plus its bound times the turn closer (``find_reusable``). That
+one is exact, not a tolerance.
 
 Storage is double-buffered by pair slot (``parity`` says which half is this step's),
 and each dynamic shape's pairs are one contiguous range, as in the broadphase's pair
@@ -38,9 +44,11 @@ class ManifoldCache:
         pc = max(16, pair_capacity)
         sc = max(1, shape_capacity)
         self.parity = ti.field(ti.i32, ())  # which half holds the pairs being written this step
-        self.reused = ti.field(ti.i32, ())  # pairs that took their manifold back, last narrowphase
+        self.reused = ti.field(ti.i32, ())  # manifolds (pairs with points) taken back, last narrowphase
+        self.reused_pairs = ti.field(ti.i32, ())  # pairs not searched again, with or without points
         self.partner = ti.field(ti.i32, (2, pc))
         self.count = ti.field(ti.i32, (2, pc))
+        self.gap = ti.field(ti.f32, (2, pc))  # no points: a lower bound of the distance when found [m]
         self.rel_pos = ti.Vector.field(3, ti.f32, (2, pc))  # b's origin in a's frame when found [m]
         self.rel_rot = ti.Vector.field(4, ti.f32, (2, pc))  # b's orientation in a's frame when found
         self.normal = ti.Vector.field(3, ti.f32, (2, pc))  # in a's frame
@@ -56,6 +64,7 @@ def clear_cache(cache: ti.template()):
     """Forget every manifold (a new world, or a state the remembered ones do not belong to)."""
     cache.parity[None] = 0
     cache.reused[None] = 0
+    cache.reused_pairs[None] = 0
     for h, i in cache.first:
         cache.first[h, i] = 0
         cache.last[h, i] = 0
@@ -67,29 +76,40 @@ def relative_pose(a: ShapePose, b: ShapePose):
 
 
 @ti.func
-def find_reusable(cache: ti.template(), i: ti.i32, j: ti.i32, a: ShapePose, b: ShapePose,
+def find_reusable(cache: ti.template(), i: ti.i32, j: ti.i32, a: ShapePose, b: ShapePose, margin: ti.f32,
                   max_d2: ti.f32, min_cos_half: ti.f32) -> ti.i32:
-    """Slot in last step's half of the manifold of pair (i, j), if it had points and the
-    pair's relative pose is still within the tolerance of the one it was found at; else -1."""
+    """Slot in last step's half of pair (i, j)'s manifold if it can stand for a new one, else -1.
+
+    With points: the pair's relative pose is still within the tolerance of the one they were
+    found at. Without: the shapes were at least ``gap`` apart then, and since then no point of
+    b has come closer to a than b's origin moved plus its bound times 2 sin(half the turn),
+    so they are still farther apart than ``margin``: exactly the answer a new search would
+    give, whatever the tolerance."""
     old = 1 - cache.parity[None]
     found = -1
     for o in range(cache.first[old, i], cache.last[old, i]):
         if found < 0 and cache.partner[old, o] == j:
             found = o
     slot = -1
-    if found >= 0 and cache.count[old, found] > 0:
+    if found >= 0 and max_d2 > 0.0:
         p_ba, q_ba = relative_pose(a, b)
         moved2 = (p_ba - cache.rel_pos[old, found]).norm_sqr()
         # |q1 . q2| = cos(half the angle between the orientations), either sign of q
-        turned_cos = ti.abs(q_ba.dot(cache.rel_rot[old, found]))
-        if moved2 < max_d2 and turned_cos > min_cos_half:
-            slot = found
+        turned_cos = ti.min(ti.abs(q_ba.dot(cache.rel_rot[old, found])), 1.0)
+        if cache.count[old, found] > 0:
+            if moved2 < max_d2 and turned_cos > min_cos_half:
+                slot = found
+        elif cache.gap[old, found] > 0.0:
+            closer = ti.sqrt(moved2) + 2.0 * ti.sqrt(1.0 - turned_cos * turned_cos) * b.bound
+            if cache.gap[old, found] - closer > margin:
+                slot = found
     return slot
 
 
 @ti.func
 def reuse_manifold(cache: ti.template(), o: ti.i32, p: ti.i32, a: ShapePose, b: ShapePose) -> Manifold:
-    """Last step's manifold in slot o at the shapes' current poses; carried to slot p."""
+    """Last step's manifold in slot o at the shapes' current poses (no points stays no
+    points); carried to slot p."""
     old = 1 - cache.parity[None]
     cur = cache.parity[None]
     n = quat_rotate(a.rot, cache.normal[old, o])
@@ -109,6 +129,7 @@ def reuse_manifold(cache: ti.template(), o: ti.i32, p: ti.i32, a: ShapePose, b: 
         cache.feature[cur, sp] = cache.feature[old, so]
     cache.partner[cur, p] = cache.partner[old, o]
     cache.count[cur, p] = m.count
+    cache.gap[cur, p] = cache.gap[old, o]
     cache.rel_pos[cur, p] = cache.rel_pos[old, o]  # the pose it was found at, so reuse cannot drift
     cache.rel_rot[cur, p] = cache.rel_rot[old, o]
     cache.normal[cur, p] = cache.normal[old, o]
@@ -122,6 +143,7 @@ def remember_manifold(cache: ti.template(), p: ti.i32, j: ti.i32, m: Manifold, a
     p_ba, q_ba = relative_pose(a, b)
     cache.partner[cur, p] = j
     cache.count[cur, p] = m.count
+    cache.gap[cur, p] = m.gap
     cache.rel_pos[cur, p] = p_ba
     cache.rel_rot[cur, p] = q_ba
     cache.normal[cur, p] = quat_rotate_inv(a.rot, m.normal)

@@ -666,6 +666,8 @@ class World:
             "contacts": n,
             "manifolds": int(b.contacts.manifold_count[None]),
             "manifolds_reused": int(b.manifold_cache.reused[None]),
+            "pairs": int(min(b.bp.pair_total[None], b.bp.pair_capacity)),
+            "pairs_reused": int(b.manifold_cache.reused_pairs[None]),
             "residual_rms": float(np.sqrt(v[RES_SQ_SUM] / (3 * n))) if n else 0.0,
             "residual_max": float(np.sqrt(v[RES_MAX_SQ])),
         }

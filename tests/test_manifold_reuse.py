@@ -86,3 +86,30 @@ def test_bad_reuse_tolerances_are_refused(value):
         Settings(manifold_reuse_distance=value)
     with pytest.raises(SandboxError, match="manifold_reuse_angle"):
         Settings(manifold_reuse_angle=value)
+
+
+def test_a_pair_kept_apart_by_its_gap_still_meets():
+    """A frictionless box slides at 0.3 m/s towards a standing one 8 cm away. Once their
+    bounds overlap the pair is searched, found apart (no points), and then skipped on its
+    gap while the gap minus the approach since stays above the margin; it is searched
+    again in time to get its points, and the slid box stops against the other instead of
+    passing into it."""
+    standing = box_body([0.0, 0.0, 0.5])
+    sliding = box_body([-1.08, 0.0, 0.5], linear_velocity=[0.3, 0.0, 0.0], friction=0.0)
+    world = World(Scene.from_dict(scene_dict([standing, sliding], solver="mass-splitting", iterations=15)),
+                  arch="cpu")
+    skipped_apart, touching, deepest = 0, 0, 0.0
+    for _ in range(40):
+        world.step(1)
+        m = world.metrics()
+        skipped_apart += m["pairs_reused"] - m["manifolds_reused"]
+        c = world.contacts(["body_a", "body_b", "separation"])
+        between = (np.minimum(c["body_a"], c["body_b"]) == 0) & (np.maximum(c["body_a"], c["body_b"]) == 1)
+        if between.any():
+            touching += 1
+            deepest = min(deepest, float(c["separation"][between].min()))
+    assert skipped_apart >= 2  # 4.3 cm apart when first paired, 2.5 cm margin, 5 mm per step
+    assert touching > 0
+    assert deepest > -2e-3
+    x = world.state()["position"][:, 0]
+    assert x[0] - x[1] > 1.0 - 2e-3  # face to face, not into each other

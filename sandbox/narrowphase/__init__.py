@@ -75,7 +75,8 @@ def collide_kinds(pool: ti.template(), a: ShapePose, b: ShapePose, margin: ti.f3
     # bounding spheres (bound 0 = not given, planes have inf) cull far pairs before any routine
     near = True
     if a.bound > 0.0 and b.bound > 0.0:
-        near = (a.pos - b.pos).norm() - a.bound - b.bound < margin
+        m.gap = (a.pos - b.pos).norm() - a.bound - b.bound
+        near = m.gap < margin
     if near:
         ka = lo.kind
         kb = hi.kind

@@ -38,6 +38,7 @@ class Manifold:
     points: ti.types.matrix(MAX_POINTS, 3, ti.f32)  # row k = world point k
     separation: vec4
     feature: ti.types.vector(MAX_POINTS, ti.i32)
+    gap: ti.f32  # no points: a lower bound of the distance between the shapes [m] (0: none known)
 
 
 @ti.func

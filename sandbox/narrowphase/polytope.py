@@ -140,4 +140,6 @@ def collide_polytope_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, m
                 if fb_ok > fa_ok + SAT_FACE_B_REL_TOL * ti.abs(fa_ok) + SAT_ABS_TOL:
                     ref_on_b, ref_face, support_vert = 1, face_b, vert_b
                 face_contact(pool, m, a, b, q_ba, p_ba, ref_on_b, ref_face, support_vert, margin)
+        elif best_all >= margin:
+            m.gap = best_all  # a separating axis: the shapes are at least this far apart
     return m
