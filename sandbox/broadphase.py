@@ -41,6 +41,9 @@ PAIRS_PER_SHAPE = 16
 """Partners a shape keeps from the counting pass (``find_pairs``); a shape with more is
 enumerated a second time to write them. 16 covers a dense box pile (mean ~4, max ~12)."""
 
+PAIR_SEARCH_TASK = 32
+"""Shapes per task of the pair search's parallel loop (see ``find_pairs_loops``)."""
+
 
 @ti.func
 def cell_hash(c: ivec3, mask: ti.i32) -> ti.i32:
@@ -74,6 +77,7 @@ class Broadphase:
         self.sorted_lo = ti.Vector.field(3, ti.f32, self.entry_capacity)
         self.sorted_hi = ti.Vector.field(3, ti.f32, self.entry_capacity)
         self.sorted_body = ti.field(ti.i32, self.entry_capacity)
+        self.sorted_cell_lo = ti.Vector.field(3, ti.i32, self.entry_capacity)  # the cell of its min corner
         self.bucket_count = ti.field(ti.i32, self.hash_size + 1)
         self.bucket_start = ti.field(ti.i32, self.hash_size + 1)
         self.bucket_fill = ti.field(ti.i32, self.hash_size)
@@ -255,6 +259,7 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
             bp.sorted_lo[e] = bp.aabb_min[j]
             bp.sorted_hi[e] = bp.aabb_max[j]
             bp.sorted_body[e] = shapes.body[j]
+            bp.sorted_cell_lo[e] = _cell_coord(bp.aabb_min[j], cell)
 
 
 @ti.kernel
@@ -305,19 +310,25 @@ def _visit_grid(bp: ti.template(), shapes: ti.template(), i: ti.i32, cell: ti.f3
             for z in range(a[2], b[2] + 1):
                 c = ivec3(x, y, z)
                 h = cell_hash(c, mask)
-                for e in range(starts[h], starts[h + 1]):
-                    j = entries[e]
-                    if ti.static(dynamic):
-                        if j > i and bp.sorted_body[e] != body_i:
-                            lo_j = bp.sorted_lo[e]
-                            if (lo <= bp.sorted_hi[e]).all() and (lo_j <= hi).all():
-                                if (_cell_coord(ti.max(lo, lo_j), cell) == c).all():
-                                    _emit(bp, i, j, base, count, write)
+                if ti.static(dynamic):
+                    # a bucket is sorted by shape id: walk it from the top down to the first j <= i
+                    e = starts[h + 1] - 1
+                    while e >= starts[h] and entries[e] > i:
+                        if bp.sorted_body[e] != body_i:
+                            if (lo <= bp.sorted_hi[e]).all() and (bp.sorted_lo[e] <= hi).all():
+                                # the cell of the intersection's min corner, from the corners' cells
+                                # (floor is monotonic): integers, no float work per visit
+                                if (ti.max(a, bp.sorted_cell_lo[e]) == c).all():
+                                    _emit(bp, i, entries[e], base, count, write)
                                     count += 1
-                    elif _overlap(bp, i, j):
-                        if (_cell_coord(ti.max(lo, bp.aabb_min[j]), cell) == c).all():
-                            _emit(bp, i, j, base, count, write)
-                            count += 1
+                        e -= 1
+                else:
+                    for e in range(starts[h], starts[h + 1]):
+                        j = entries[e]
+                        if _overlap(bp, i, j):
+                            if (_cell_coord(ti.max(lo, bp.aabb_min[j]), cell) == c).all():
+                                _emit(bp, i, j, base, count, write)
+                                count += 1
     return count
 
 
@@ -347,6 +358,9 @@ def find_pairs_loops(bp: ti.template(), shapes: ti.template()):
     """Count pass (which keeps the first PAIRS_PER_SHAPE partners of each shape in its
     scratch row), scan, then copy; only a shape with more partners is enumerated again."""
     n = shapes.dynamic_count[None]
+    # a shape checks only partners of higher id, so low ids carry most of the work: small
+    # tasks (Taichi's CPU default is 512 items, two tasks for a 1000-shape pile) balance it
+    ti.loop_config(block_dim=PAIR_SEARCH_TASK)
     for k in range(n):
         bp.pair_count[k] = _visit_pairs(bp, shapes, k, k * PAIRS_PER_SHAPE, SCRATCH)
     exclusive_scan(bp.scanner, bp.pair_count, bp.pair_start, n, bp.pair_total)
