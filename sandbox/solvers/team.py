@@ -103,3 +103,18 @@ def wait(team: ti.template(), p: ti.i32, n: ti.i32):
     solved by running members (an atomic read, so the load is never hoisted)."""
     while ti.atomic_add(team.finished[p], 0) < n:
         pass
+
+
+@ti.kernel
+def keep_members_busy(items: ti.i32, iterations: ti.i32) -> ti.f32:
+    """A top-level loop started like a team (one member per ``TASK_ITEMS``), each member a
+    dependent chain of ``iterations`` steps: keeps every CPU worker busy at once, for a
+    while, so that backend.pin_cpu_workers can tell which threads they are."""
+    total = 0.0
+    for t in range(items):
+        if t % TASK_ITEMS == 0:
+            x = 1.0
+            for _ in range(iterations):
+                x = x * 1.0000001 + 1e-7  # grows: no fixed point to stop at, nothing to fold
+            total += x
+    return total
