@@ -37,7 +37,7 @@ def main() -> None:
             cells = []
             for k in iterations:
                 ok, figures = run_case(case, solver, k)
-                cells.append(f"{'PASS' if ok else 'FAIL'}: {figures}")
+                cells.append(f"{'PASS' if ok else 'FAIL'}: " + figures.replace("|", "\\|"))  # |v| in a table cell
                 print(f"{case.name:28s} {solver:22s} {k:4d}  {'PASS' if ok else 'FAIL'}  {figures}", flush=True)
             lines.append(f"| {solver} | " + " | ".join(cells) + " |")
         lines.append("")

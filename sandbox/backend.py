@@ -108,8 +108,9 @@ def _thread_cpu_ticks() -> dict[int, int]:
 
 def pin_cpu_workers(tries: int = 6) -> list[int]:
     """Pin each of Taichi's CPU worker threads to its own CPU; returns the CPUs used
-    (empty when not done: not Linux, fewer CPUs than workers, or the workers could not be
-    told apart).
+    (empty when not done: not Linux, as many workers as CPUs not the case (a process given
+    fewer threads shares the machine, and pinning every such process to the same CPUs would
+    stack them), or the workers could not be told apart).
 
     Why: the solver team (solvers/team.py) spins while it waits for a phase to finish, and
     Linux's wake-affine placement now and then puts both workers on the CPU that woke
@@ -128,7 +129,7 @@ def pin_cpu_workers(tries: int = 6) -> list[int]:
         return []
     workers = int(impl.current_cfg().cpu_max_num_threads)
     cpus = sorted(os.sched_getaffinity(0))
-    if workers < 2 or len(cpus) < workers:
+    if workers < 2 or len(cpus) != workers:
         return []
     main = threading.get_native_id()
     for _ in range(tries):
@@ -140,9 +141,14 @@ def pin_cpu_workers(tries: int = 6) -> list[int]:
             try:
                 for tid, cpu in zip(busy, cpus):
                     os.sched_setaffinity(tid, {cpu})
-            except OSError:  # a sandbox that forbids it: run unpinned
+            except OSError:  # forbidden, or a thread gone: run unpinned, all of them
+                for tid in busy:
+                    try:
+                        os.sched_setaffinity(tid, set(cpus))
+                    except OSError:
+                        pass
                 return []
-            return cpus[:workers]
+            return cpus
     return []
 
 

@@ -41,8 +41,8 @@ PAIRS_PER_SHAPE = 16
 """Partners a shape keeps from the counting pass (``find_pairs``); a shape with more is
 enumerated a second time to write them. 16 covers a dense box pile (mean ~4, max ~12)."""
 
-PAIR_SEARCH_TASK = 32
-"""Shapes per task of the pair search's parallel loop (see ``find_pairs_loops``)."""
+PAIR_SEARCH_STRIDE = 16
+"""The pair search's loop visits the shapes in this many interleaved strata (``find_pairs_loops``)."""
 
 
 @ti.func
@@ -312,16 +312,22 @@ def _visit_grid(bp: ti.template(), shapes: ti.template(), i: ti.i32, cell: ti.f3
                 h = cell_hash(c, mask)
                 if ti.static(dynamic):
                     # a bucket is sorted by shape id: walk it from the top down to the first j <= i
-                    e = starts[h + 1] - 1
-                    while e >= starts[h] and entries[e] > i:
-                        if bp.sorted_body[e] != body_i:
+                    for back in range(starts[h + 1] - starts[h]):
+                        e = starts[h + 1] - 1 - back
+                        j = entries[e]
+                        if j <= i:
+                            break
+                        # two cells of one shape can share a bucket: its entries sit side by side
+                        duplicate = 0
+                        if back > 0:
+                            duplicate = entries[e + 1] == j
+                        if bp.sorted_body[e] != body_i and duplicate == 0:
                             if (lo <= bp.sorted_hi[e]).all() and (bp.sorted_lo[e] <= hi).all():
                                 # the cell of the intersection's min corner, from the corners' cells
                                 # (floor is monotonic): integers, no float work per visit
                                 if (ti.max(a, bp.sorted_cell_lo[e]) == c).all():
-                                    _emit(bp, i, entries[e], base, count, write)
+                                    _emit(bp, i, j, base, count, write)
                                     count += 1
-                        e -= 1
                 else:
                     for e in range(starts[h], starts[h + 1]):
                         j = entries[e]
@@ -358,11 +364,14 @@ def find_pairs_loops(bp: ti.template(), shapes: ti.template()):
     """Count pass (which keeps the first PAIRS_PER_SHAPE partners of each shape in its
     scratch row), scan, then copy; only a shape with more partners is enumerated again."""
     n = shapes.dynamic_count[None]
-    # a shape checks only partners of higher id, so low ids carry most of the work: small
-    # tasks (Taichi's CPU default is 512 items, two tasks for a 1000-shape pile) balance it
-    ti.loop_config(block_dim=PAIR_SEARCH_TASK)
-    for k in range(n):
-        bp.pair_count[k] = _visit_pairs(bp, shapes, k, k * PAIRS_PER_SHAPE, SCRATCH)
+    # a shape checks only partners of higher id, so low ids carry most of the work, and
+    # Taichi's CPU loop hands each thread one contiguous block of the range: visit the
+    # shapes interleaved (t -> k), so every block holds low and high ids alike
+    rows = (n + PAIR_SEARCH_STRIDE - 1) // PAIR_SEARCH_STRIDE
+    for t in range(rows * PAIR_SEARCH_STRIDE):
+        k = (t % PAIR_SEARCH_STRIDE) * rows + t // PAIR_SEARCH_STRIDE
+        if k < n:
+            bp.pair_count[k] = _visit_pairs(bp, shapes, k, k * PAIRS_PER_SHAPE, SCRATCH)
     exclusive_scan(bp.scanner, bp.pair_count, bp.pair_start, n, bp.pair_total)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):

@@ -128,7 +128,7 @@ def partner_material(shapes: ti.template(), partner: ti.i32):
 @ti.func
 def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
                         pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
-                        reuse_d2: ti.f32, reuse_cos: ti.f32, kinds: ti.template()):
+                        reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template()):
     """Narrowphase over every candidate pair, then pack the points and manifolds.
 
     The pair's margin is the speculative distance (capped at a quarter of the smaller
@@ -138,8 +138,8 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
     slop is likewise capped at a tenth of the smaller bound. ``kinds`` (the shape
     kinds the scene contains, a static tuple) keeps routines for absent kinds out of
     the compiled kernel (house rule 8). A pair whose relative pose moved less than
-    ``reuse_d2`` (squared distance) and whose relative rotation's half-angle cosine
-    stays above ``reuse_cos`` takes last step's manifold back (manifold_cache.py)."""
+    ``reuse_d2`` (squared distance) and whose relative rotation's half-angle sine stays
+    below ``reuse_sin`` takes last step's manifold back (manifold_cache.py)."""
     n_pairs = ti.min(bp.pair_total[None], bp.pair_capacity)
     cache.reused[None] = 0
     cache.reused_pairs[None] = 0
@@ -159,7 +159,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
         pair_margin = ti.min(margin, 0.25 * small) + swept
         c.raw_slop[p] = ti.min(slop, 0.1 * small)
         m = Manifold(count=0, normal=vec3(0.0, 0.0, 1.0))
-        o = find_reusable(cache, i, j, a, b, pair_margin, reuse_d2, reuse_cos)
+        o = find_reusable(cache, i, j, a, b, pair_margin, reuse_d2, reuse_sin)
         if o >= 0:
             m = reuse_manifold(cache, o, p, a, b)
             ti.atomic_add(cache.reused_pairs[None], 1)
@@ -223,5 +223,5 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
 @ti.kernel
 def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
                   pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
-                  reuse_d2: ti.f32, reuse_cos: ti.f32, kinds: ti.template()):
-    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_cos, kinds)
+                  reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template()):
+    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_sin, kinds)

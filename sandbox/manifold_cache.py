@@ -9,7 +9,9 @@ point as two anchors, the point on a's surface in a's frame and the point on b's
 surface in b's frame. Next step, a pair whose relative pose is still within
 ``Settings.manifold_reuse_distance`` and ``manifold_reuse_angle`` of that
 remembered pose takes the manifold back: the anchors ride with their bodies, the
-normal with a, and the separation is measured again along it, so depth and its
+normal with the shape whose face it is (``Manifold.normal_on_b``: a plank leaning on
+the ground keeps the ground's normal, not one tilting with the plank, which would turn
+part of the support into a sideways push), and the separation is measured again along it, so depth and its
 rate stay exact for the contact points kept; what reuse skips is only finding new
 points (a point appearing or clipping moving), which needs more relative motion
 than the tolerance. The remembered pose is the one the manifold was found at, not
@@ -51,7 +53,8 @@ class ManifoldCache:
         self.gap = ti.field(ti.f32, (2, pc))  # no points: a lower bound of the distance when found [m]
         self.rel_pos = ti.Vector.field(3, ti.f32, (2, pc))  # b's origin in a's frame when found [m]
         self.rel_rot = ti.Vector.field(4, ti.f32, (2, pc))  # b's orientation in a's frame when found
-        self.normal = ti.Vector.field(3, ti.f32, (2, pc))  # in a's frame
+        self.normal = ti.Vector.field(3, ti.f32, (2, pc))  # in the frame of the shape whose face it is
+        self.normal_on_b = ti.field(ti.i32, (2, pc))  # that shape is b (else a)
         self.on_a = ti.Vector.field(3, ti.f32, (2, pc * MAX_POINTS))  # a's surface point, a's frame [m]
         self.on_b = ti.Vector.field(3, ti.f32, (2, pc * MAX_POINTS))  # b's surface point, b's frame [m]
         self.feature = ti.field(ti.i32, (2, pc * MAX_POINTS))
@@ -77,14 +80,17 @@ def relative_pose(a: ShapePose, b: ShapePose):
 
 @ti.func
 def find_reusable(cache: ti.template(), i: ti.i32, j: ti.i32, a: ShapePose, b: ShapePose, margin: ti.f32,
-                  max_d2: ti.f32, min_cos_half: ti.f32) -> ti.i32:
+                  max_d2: ti.f32, max_sin_half: ti.f32) -> ti.i32:
     """Slot in last step's half of pair (i, j)'s manifold if it can stand for a new one, else -1.
 
     With points: the pair's relative pose is still within the tolerance of the one they were
     found at. Without: the shapes were at least ``gap`` apart then, and since then no point of
     b has come closer to a than b's origin moved plus its bound times 2 sin(half the turn),
     so they are still farther apart than ``margin``: exactly the answer a new search would
-    give, whatever the tolerance."""
+    give, whatever the tolerance (padded for the float32 rounding of the poses).
+
+    The turn is measured as sin(half angle) = |vector part of q_old* q_now|, which float32
+    resolves down to ~1e-7 rad; 1 - |q_old . q_now| (its cosine) rounds to 0 below ~5e-4 rad."""
     old = 1 - cache.parity[None]
     found = -1
     for o in range(cache.first[old, i], cache.last[old, i]):
@@ -94,13 +100,14 @@ def find_reusable(cache: ti.template(), i: ti.i32, j: ti.i32, a: ShapePose, b: S
     if found >= 0 and max_d2 > 0.0:
         p_ba, q_ba = relative_pose(a, b)
         moved2 = (p_ba - cache.rel_pos[old, found]).norm_sqr()
-        # |q1 . q2| = cos(half the angle between the orientations), either sign of q
-        turned_cos = ti.min(ti.abs(q_ba.dot(cache.rel_rot[old, found])), 1.0)
+        d = quat_mul(quat_conj(cache.rel_rot[old, found]), q_ba)
+        sin_half = vec3(d[1], d[2], d[3]).norm() / d.norm()  # either sign of q
         if cache.count[old, found] > 0:
-            if moved2 < max_d2 and turned_cos > min_cos_half:
+            if moved2 < max_d2 and sin_half < max_sin_half:
                 slot = found
         elif cache.gap[old, found] > 0.0:
-            closer = ti.sqrt(moved2) + 2.0 * ti.sqrt(1.0 - turned_cos * turned_cos) * b.bound
+            rounding = 1e-6 * (a.pos.norm() + p_ba.norm() + b.bound)
+            closer = ti.sqrt(moved2) + 2.0 * sin_half * b.bound * (1.0 + 1e-3) + rounding
             if cache.gap[old, found] - closer > margin:
                 slot = found
     return slot
@@ -112,7 +119,8 @@ def reuse_manifold(cache: ti.template(), o: ti.i32, p: ti.i32, a: ShapePose, b: 
     points); carried to slot p."""
     old = 1 - cache.parity[None]
     cur = cache.parity[None]
-    n = quat_rotate(a.rot, cache.normal[old, o])
+    on_b = cache.normal_on_b[old, o]
+    n = quat_rotate(b.rot if on_b else a.rot, cache.normal[old, o])
     m = Manifold(count=cache.count[old, o], normal=n)
     for k in range(m.count):
         so = MAX_POINTS * o + k
@@ -133,6 +141,7 @@ def reuse_manifold(cache: ti.template(), o: ti.i32, p: ti.i32, a: ShapePose, b: 
     cache.rel_pos[cur, p] = cache.rel_pos[old, o]  # the pose it was found at, so reuse cannot drift
     cache.rel_rot[cur, p] = cache.rel_rot[old, o]
     cache.normal[cur, p] = cache.normal[old, o]
+    cache.normal_on_b[cur, p] = on_b
     return m
 
 
@@ -146,7 +155,8 @@ def remember_manifold(cache: ti.template(), p: ti.i32, j: ti.i32, m: Manifold, a
     cache.gap[cur, p] = m.gap
     cache.rel_pos[cur, p] = p_ba
     cache.rel_rot[cur, p] = q_ba
-    cache.normal[cur, p] = quat_rotate_inv(a.rot, m.normal)
+    cache.normal[cur, p] = quat_rotate_inv(b.rot if m.normal_on_b else a.rot, m.normal)
+    cache.normal_on_b[cur, p] = m.normal_on_b
     for k in range(m.count):
         x = manifold_point(m, k)
         half = 0.5 * m.separation[k] * m.normal

@@ -23,7 +23,7 @@ from .solvers.rows import prepare_row, respond_row, set_row_params
 @ti.kernel
 def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template(), shapes: ti.template(),
                       c: ti.template(), pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32,
-                      h: ti.f32, reuse_d2: ti.f32, reuse_cos: ti.f32, kinds: ti.template()):
+                      h: ti.f32, reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template()):
     """Save the good state, clear the error flags, world inertias, broadphase, narrowphase."""
     err.flags[None] = 0
     err.body[None] = BIG
@@ -31,7 +31,7 @@ def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template
     update_world_inertia_loops(bodies)
     build_dynamic_grid_loops(bp, shapes, bodies, margin, h, err)
     find_pairs_loops(bp, shapes)
-    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_cos, kinds)
+    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_sin, kinds)
 
 
 @ti.kernel

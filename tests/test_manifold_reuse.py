@@ -88,6 +88,11 @@ def test_bad_reuse_tolerances_are_refused(value):
         Settings(manifold_reuse_angle=value)
 
 
+def test_a_reuse_angle_past_half_a_turn_is_refused():
+    with pytest.raises(SandboxError, match=r"manifold_reuse_angle must be in \[0, 3.1416\]"):
+        Settings(manifold_reuse_angle=4.0)
+
+
 def test_a_pair_kept_apart_by_its_gap_still_meets():
     """A frictionless box slides at 0.3 m/s towards a standing one 8 cm away. Once their
     bounds overlap the pair is searched, found apart (no points), and then skipped on its

@@ -107,6 +107,7 @@ def collide_kinds(pool: ti.template(), a: ShapePose, b: ShapePose, margin: ti.f3
                 m = collide_polytope_polytope(pool, lo, hi, margin)
     if swap:
         m.normal = -m.normal
+        m.normal_on_b = 1 - m.normal_on_b  # a routine's B is our A
     return m
 
 

@@ -201,6 +201,7 @@ def face_contact(pool: ti.template(), m: ti.template(), a: ShapePose, b: ShapePo
 
     n_w = quat_rotate(rot_w, n_r)
     m.normal = n_w
+    m.normal_on_b = ref_on_b
     if ref_on_b:
         m.normal = -n_w
     if r.count > 0:

@@ -160,6 +160,7 @@ def collide_core_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, margi
                 if is_segment:
                     clip_face = i_face
     m.normal = -quat_rotate(b.rot, u)
+    m.normal_on_b = 1  # a face normal of the polytope, or the closest-point direction in its frame
 
     if clip_face >= 0:
         # clip the core to the face's prism: t in [lo, hi]; CLIP_EPS of slack as in clip.py

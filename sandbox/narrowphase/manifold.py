@@ -39,6 +39,7 @@ class Manifold:
     separation: vec4
     feature: ti.types.vector(MAX_POINTS, ti.i32)
     gap: ti.f32  # no points: a lower bound of the distance between the shapes [m] (0: none known)
+    normal_on_b: ti.i32  # 1: the normal is a face normal of shape B (it turns with B), 0: of A or neither
 
 
 @ti.func
