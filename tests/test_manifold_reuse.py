@@ -118,3 +118,26 @@ def test_a_pair_kept_apart_by_its_gap_still_meets():
     assert deepest > -2e-3
     x = world.state()["position"][:, 0]
     assert x[0] - x[1] > 1.0 - 2e-3  # face to face, not into each other
+
+
+def test_a_turning_pair_kept_apart_is_searched_again_before_it_touches():
+    """The gap bound counts turning as well as sliding: a box spinning at 0.3 rad/s beside a
+    fixed one 5 cm away is skipped while its turn since the search cannot close the gap, and
+    searched again in time; its corner meets the fixed box instead of turning into it (the
+    corner's reach 0.5 (cos t + sin t) hits the face at 0.55 m when t = 0.106 rad, step ~21)."""
+    spinning = box_body([0.0, 0.0, 0.0], angular_velocity=[0.0, 0.0, 0.3])
+    fixed = box_body([1.05, 0.0, 0.0], static=True)
+    world = World(Scene.from_dict(scene_dict([spinning, fixed], statics=(), gravity=(0.0, 0.0, 0.0),
+                                             solver="mass-splitting", iterations=15)), arch="cpu")
+    skipped_apart, touching, deepest = 0, 0, 0.0
+    for _ in range(60):
+        world.step(1)
+        m = world.metrics()
+        if touching == 0:
+            skipped_apart += m["pairs_reused"] - m["manifolds_reused"]
+        if m["contacts"]:
+            touching += 1
+            deepest = max(deepest, m["max_penetration"])
+    assert skipped_apart >= 1  # before the first touch (steps 4 and 6 of 21)
+    assert touching > 0
+    assert deepest < 2e-3
