@@ -121,13 +121,11 @@ def pin_cpu_workers(tries: int = 6) -> list[int]:
     CPU time they gain while a kernel keeps each of them busy (one task per thread, as the
     team starts its members); nothing else in the process is touched.
     ``SANDBOX_PIN_THREADS=0`` turns it off."""
-    from taichi.lang import impl
-
-    from .solvers.team import TASK_ITEMS, keep_members_busy
+    from .solvers.team import TASK_ITEMS, cpu_threads, keep_members_busy
 
     if not os.path.isdir("/proc/self/task") or not hasattr(os, "sched_setaffinity"):
         return []
-    workers = int(impl.current_cfg().cpu_max_num_threads)
+    workers = cpu_threads()
     cpus = sorted(os.sched_getaffinity(0))
     if workers < 2 or len(cpus) != workers:
         return []

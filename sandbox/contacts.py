@@ -19,7 +19,7 @@ from .math3d import quat_mul, quat_rotate
 from .narrowphase import collide_kinds
 from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose
 from .broadphase import swept_distance
-from .manifold_cache import close_step, find_reusable, remember_manifold, reuse_manifold
+from .manifold_cache import close_step, find_reusable, remember_manifold, reuse_manifold, start_step
 from .prefix_sum import Scanner, exclusive_scan
 from .shapes import PLANE
 
@@ -141,8 +141,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
     ``reuse_d2`` (squared distance) and whose relative rotation's half-angle sine stays
     below ``reuse_sin`` takes last step's manifold back (manifold_cache.py)."""
     n_pairs = ti.min(bp.pair_total[None], bp.pair_capacity)
-    cache.reused[None] = 0
-    cache.reused_pairs[None] = 0
+    start_step(cache)
     for p in range(n_pairs):
         i = bp.pair_a[p]
         j = bp.pair_b[p]
@@ -162,9 +161,6 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
         o = find_reusable(cache, i, j, a, b, pair_margin, reuse_d2, reuse_sin)
         if o >= 0:
             m = reuse_manifold(cache, o, p, a, b)
-            ti.atomic_add(cache.reused_pairs[None], 1)
-            if m.count > 0:
-                ti.atomic_add(cache.reused[None], 1)
         else:
             m = collide_kinds(pool, a, b, pair_margin, kinds)
             remember_manifold(cache, p, j, m, a, b)

@@ -34,7 +34,7 @@ import taichi as ti
 
 from .backend import serialize_light_loops
 from .math3d import quat_conj, quat_mul, quat_rotate, quat_rotate_inv
-from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose, manifold_point
+from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose, manifold_point, relative_pose
 
 vec3 = ti.math.vec3
 vec4 = ti.math.vec4
@@ -74,8 +74,10 @@ def clear_cache(cache: ti.template()):
 
 
 @ti.func
-def relative_pose(a: ShapePose, b: ShapePose):
-    return quat_rotate_inv(a.rot, b.pos - a.pos), quat_mul(quat_conj(a.rot), b.rot)
+def start_step(cache: ti.template()):
+    """Zero the reuse counters before a narrowphase (close_step ends it)."""
+    cache.reused[None] = 0
+    cache.reused_pairs[None] = 0
 
 
 @ti.func
@@ -116,7 +118,7 @@ def find_reusable(cache: ti.template(), i: ti.i32, j: ti.i32, a: ShapePose, b: S
 @ti.func
 def reuse_manifold(cache: ti.template(), o: ti.i32, p: ti.i32, a: ShapePose, b: ShapePose) -> Manifold:
     """Last step's manifold in slot o at the shapes' current poses (no points stays no
-    points); carried to slot p."""
+    points); carried to slot p and counted."""
     old = 1 - cache.parity[None]
     cur = cache.parity[None]
     on_b = cache.normal_on_b[old, o]
@@ -142,6 +144,9 @@ def reuse_manifold(cache: ti.template(), o: ti.i32, p: ti.i32, a: ShapePose, b: 
     cache.rel_rot[cur, p] = cache.rel_rot[old, o]
     cache.normal[cur, p] = cache.normal[old, o]
     cache.normal_on_b[cur, p] = on_b
+    ti.atomic_add(cache.reused_pairs[None], 1)  # integer counts: the order of adds does not matter
+    if m.count > 0:
+        ti.atomic_add(cache.reused[None], 1)
     return m
 
 

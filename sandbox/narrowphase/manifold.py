@@ -12,6 +12,8 @@ stage can carry impulses over (warm starting).
 
 import taichi as ti
 
+from ..math3d import quat_conj, quat_mul, quat_rotate_inv
+
 vec3 = ti.math.vec3
 vec4 = ti.math.vec4
 MAX_POINTS = 4
@@ -29,6 +31,12 @@ class ShapePose:
     half_height: ti.f32  # capsule: half length of the core segment along local z [m]
     poly: ti.i32  # box / hull / triangle: polytope id in the PolytopePool
     bound: ti.f32  # radius of a sphere about pos enclosing the shape [m] (inf for planes)
+
+
+@ti.func
+def relative_pose(a: ShapePose, b: ShapePose):
+    """(position, orientation) of shape b in shape a's frame."""
+    return quat_rotate_inv(a.rot, b.pos - a.pos), quat_mul(quat_conj(a.rot), b.rot)
 
 
 @ti.dataclass

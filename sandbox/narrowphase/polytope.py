@@ -41,11 +41,11 @@ Plane-polytope feature id: the polytope's local vertex index.
 
 import taichi as ti
 
-from ..math3d import quat_conj, quat_mul, quat_rotate, quat_rotate_inv
+from ..math3d import quat_rotate, quat_rotate_inv
 from ..shapes import BOX, TRIANGLE
 from .box_sat import box_edge_query, box_face_queries
 from .clip import face_contact
-from .manifold import Manifold, ShapePose, manifold_add
+from .manifold import Manifold, ShapePose, manifold_add, relative_pose
 from .reduce import REDUCE_PASSES, reducer_finish, reducer_needs_pass, reducer_new, reducer_visit
 from .sat import edge_query_solid, edge_query_triangle, face_query_a, face_query_b, to_a
 from .segments import closest_segments
@@ -95,8 +95,7 @@ def collide_polytope_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, m
     m = Manifold(count=0, normal=vec3(0.0, 0.0, 1.0))
     pa = a.poly
     pb = b.poly
-    q_ba = quat_mul(quat_conj(a.rot), b.rot)
-    p_ba = quat_rotate_inv(a.rot, b.pos - a.pos)
+    p_ba, q_ba = relative_pose(a, b)
     tri = 1 if b.kind == TRIANGLE else 0
     n_tri = vec3(0.0, 0.0, 1.0)
     in_front = 1
