@@ -16,7 +16,7 @@ from .broadphase import build_dynamic_grid_loops, find_pairs_loops
 from .contacts import collide_pairs_loops
 from .integrate import BIG, check_velocities_loops
 from .persistence import match_contact, store_contacts_loops
-from .solvers.blocks import build_adjacency_loops
+from .solvers.mass_splitting import build_adjacency_loops
 from .solvers.rows import prepare_row, respond_row, set_row_params
 
 

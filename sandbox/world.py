@@ -565,14 +565,14 @@ class World:
         return {"pgs": substep.PGS, "pgs-colored": substep.PGS_COLORED}.get(self.solver, substep.BLOCKS)
 
     def _schedule(self):
-        from .solvers import blocks
+        from .solvers import mass_splitting as blocks
 
         kind = blocks.PER_POINT if SOLVERS[self.solver].block == "point" else blocks.PER_MANIFOLD
         return kind, self.buf.blocks, self.buf.rows, self.buf.contacts, self.buf.bodies
 
     def _schedule_setup(self):
         """(kind, block scratch, adjacency mode, omega, split responses) of the chosen schedule."""
-        from .solvers import blocks
+        from .solvers import mass_splitting as blocks
 
         kind, b, rows, c, bodies = self._schedule()
         split = self.solver in ("mass-splitting", "block-mass-splitting")
@@ -582,7 +582,7 @@ class World:
 
     def _prepare_schedule(self) -> None:
         """Per-step set-up of the chosen schedule: body adjacency (all), colouring (pgs-colored)."""
-        from .solvers import blocks
+        from .solvers import mass_splitting as blocks
         from .solvers.rows import prepare_response
 
         kind, b, mode, omega, split = self._schedule_setup()
@@ -602,14 +602,14 @@ class World:
         self._color_starts = None  # read from the device by the first host-driven sweep that needs them
 
     def _warm_start(self, gravity, h: float) -> None:
-        from .solvers import blocks
+        from .solvers import mass_splitting as blocks
 
         kind, b, rows, c, bodies = self._schedule()
         blocks.warm_start(b, rows, c, bodies, kind, gravity, h)
 
     def _sweep(self, mode: int, then_warm: int = 0, gravity=None, h: float = 0.0) -> None:
         """One pass of the chosen schedule over every contact row (``then_warm``: blocks.sweep_blocks)."""
-        from .solvers import blocks, pgs
+        from .solvers import mass_splitting as blocks, pgs
 
         kind, b, rows, c, bodies = self._schedule()
         fr = self.friction

@@ -5,7 +5,7 @@ One iteration is a substep: gravity, warm start, biased sweep(s), position updat
 sweep(s). Run stage by stage that is 5+ launches per iteration, and on a small scene the
 launches, not the arithmetic, set the cost (apis.md 4.5: ~20 us of Python and runtime per
 launch; measured here ~60 % of a 1000-box pile's step). Every phase is written once as a
-``ti.func`` holding its loop(s) (integrate.py, blocks.py, pgs.py); this module only chains
+``ti.func`` holding its loop(s) (integrate.py, mass_splitting.py, pgs.py); this module only chains
 them, in two ways:
 
 * ``iterate_in_order``: the whole iteration loop in ONE launch. Its outer loop over the
@@ -35,7 +35,7 @@ import taichi as ti
 from ..impact import accumulate_points_loop, add_point_impulse
 from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loop
 from . import team as tm
-from .blocks import gather_body, sweep_block, sweep_blocks, warm_block, warm_start_blocks
+from .mass_splitting import gather_body, sweep_block, sweep_blocks, warm_block, warm_start_blocks
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX
 
@@ -61,7 +61,7 @@ def _sweep(schedule: ti.template(), s: ti.template(), rows: ti.template(), c: ti
 def _start_substep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                    kind: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
     """Gravity and warm start of a substep (``active`` = 0 skips both: the Jacobi family's
-    later substeps get them from the previous relax sweep, blocks.sweep_blocks)."""
+    later substeps get them from the previous relax sweep, mass_splitting.sweep_blocks)."""
     if ti.static(warm):
         warm_start_blocks(s, rows, c, bodies, kind, gravity, h, active)
     else:
