@@ -6,7 +6,7 @@ store), each a launch of ~50 us of Python and runtime, and each parallel loop wa
 both worker threads. Every stage's loops are written once as a ``ti.func`` (``*_loops``,
 next to its kernel); here they are chained at the top level of one kernel each, so every
 loop stays a parallel loop run in the same order as the separate launches: the same bits.
-``World`` uses these when the profiler is off (the profiler times the separate kernels).
+``step.py`` uses these when the profiler is off (the profiler times the separate kernels).
 """
 
 import taichi as ti

@@ -26,7 +26,8 @@ them, in two ways:
   again, with both cores and without a thread-pool dispatch per phase (~50 us each on
   the 2-core VM, benchmarks/loop_dispatch.py): the CPU default.
 
-``World`` picks one (``Settings.iteration_launch``) and keeps the stage-by-stage kernels
+``Schedule.launch`` (solvers/schedule.py) picks one from ``Settings.iteration_launch``
+and what the solver's description allows; ``step.py`` keeps the stage-by-stage kernels
 for the profiler (one timer per stage) and for residual recording (a read per sweep).
 """
 
@@ -107,7 +108,7 @@ def substep_parallel(s: ti.template(), rows: ti.template(), c: ti.template(), bo
                      gravity: vec3, h: ti.f32, first: ti.i32, then_warm: ti.i32):
     """One substep of ``h`` with one sweep each, every phase's loops parallel, in one launch.
     ``first``: this substep does its own gravity and warm start; ``then_warm``: its relax
-    sweep does the next one's (both 1 / 0 decided by ``World`` with ``folds_warm_start``)."""
+    sweep does the next one's (both 1 / 0 decided by ``Schedule.iterate`` with ``folds_warm_start``)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     _start_substep(s, rows, c, bodies, kind, warm, gravity, h, first)
     _sweep(schedule, s, rows, c, bodies, col, kind, BIASED, friction, 0, gravity, h)
