@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..errors import SandboxError
+from ..settings import ITERATION_LAUNCHES
 
 VISITS = ("serial", "colored", "blocks")
 """How a sweep visits the blocks: one after another in buffer order, the colours of a
@@ -35,7 +36,7 @@ COMBINES = ("in-place", "jacobi", "split")
 every block's change times a relaxation (projected Jacobi: one global split factor); the
 average of the sub-bodies of a body split by its block count (mass splitting)."""
 
-LAUNCHES = ("shared", "one", "per-substep", "per-stage")
+LAUNCHES = tuple(launch for launch in ITERATION_LAUNCHES if launch != "auto")
 """How the iteration loop can be launched (``Settings.iteration_launch``, solvers/substep.py)."""
 
 
