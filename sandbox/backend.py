@@ -84,6 +84,8 @@ def init(arch: str = "auto") -> str:
     _active = wanted
     _owner_thread = threading.get_ident()
     if wanted == "cpu" and os.environ.get("SANDBOX_PIN_THREADS", "1") != "0":
+        from .cpu_workers import pin_cpu_workers
+
         _pinned[:] = pin_cpu_workers()
     return wanted
 
@@ -91,63 +93,6 @@ def init(arch: str = "auto") -> str:
 def pinned_cpus() -> list[int]:
     """The CPUs Taichi's worker threads were pinned to at init, one each (empty: not pinned)."""
     return list(_pinned)
-
-
-def _thread_cpu_ticks() -> dict[int, int]:
-    """User + system clock ticks of every thread of this process (Linux /proc)."""
-    ticks = {}
-    for tid in os.listdir("/proc/self/task"):
-        try:
-            with open(f"/proc/self/task/{tid}/stat") as f:
-                fields = f.read().rsplit(")", 1)[1].split()
-            ticks[int(tid)] = int(fields[11]) + int(fields[12])
-        except (OSError, IndexError, ValueError):
-            continue
-    return ticks
-
-
-def pin_cpu_workers(tries: int = 6) -> list[int]:
-    """Pin each of Taichi's CPU worker threads to its own CPU; returns the CPUs used
-    (empty when not done: not Linux, as many workers as CPUs not the case (a process given
-    fewer threads shares the machine, and pinning every such process to the same CPUs would
-    stack them), or the workers could not be told apart).
-
-    Why: the solver team (solvers/team.py) spins while it waits for a phase to finish, and
-    Linux's wake-affine placement now and then puts both workers on the CPU that woke
-    them; the two then take turns by time slices, and the iteration loop takes 2.5x as
-    long. Measured on the 2-vCPU VM, pile_1000, mass splitting: the loop's p90 was 9.9-11.6
-    ms free against 3.8-4.7 ms pinned (median 3.4-4.2 both), and peer_pybullet's median
-    ratio 1.12-1.31x free against 1.78-1.82x pinned (runs alternated). Workers are told apart by the
-    CPU time they gain while a kernel keeps each of them busy (one task per thread, as the
-    team starts its members); nothing else in the process is touched.
-    ``SANDBOX_PIN_THREADS=0`` turns it off."""
-    from .solvers.team import TASK_ITEMS, cpu_threads, keep_members_busy
-
-    if not os.path.isdir("/proc/self/task") or not hasattr(os, "sched_setaffinity"):
-        return []
-    workers = cpu_threads()
-    cpus = sorted(os.sched_getaffinity(0))
-    if workers < 2 or len(cpus) != workers:
-        return []
-    main = threading.get_native_id()
-    for _ in range(tries):
-        before = _thread_cpu_ticks()
-        keep_members_busy(workers * TASK_ITEMS, 15_000_000)  # ~25 ms per member
-        after = _thread_cpu_ticks()
-        busy = sorted(tid for tid, t in after.items() if tid != main and t - before.get(tid, 0) >= 1)
-        if len(busy) == workers:
-            try:
-                for tid, cpu in zip(busy, cpus):
-                    os.sched_setaffinity(tid, {cpu})
-            except OSError:  # forbidden, or a thread gone: run unpinned, all of them
-                for tid in busy:
-                    try:
-                        os.sched_setaffinity(tid, set(cpus))
-                    except OSError:
-                        pass
-                return []
-            return cpus
-    return []
 
 
 def active_arch() -> str | None:

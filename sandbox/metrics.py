@@ -10,7 +10,7 @@ float atomics, so the last bits may vary run to run; they never feed back into
 the simulation, which stays bitwise repeatable.
 """
 
-
+import numpy as np
 import taichi as ti
 
 from .math3d import quat_rotate_inv
@@ -41,3 +41,23 @@ def compute_metrics(out: ti.template(), bodies: ti.template(), c: ti.template(),
         r = rows.residual[q]
         ti.atomic_add(out.values[RES_SQ_SUM], r)
         ti.atomic_max(out.values[RES_MAX_SQ], r)
+
+
+def read_metrics(b) -> dict:
+    """This step's diagnostics of a world's buffers (``b``: buffers.BufferSet) as numbers.
+    The residual is that of ``rows.residual`` as last computed (solvers/rows.compute_residuals)."""
+    compute_metrics(b.metrics, b.bodies, b.contacts, b.rows)
+    v = b.metrics.values.to_numpy().astype(np.float64)
+    n = int(b.contacts.count[None])
+    return {
+        "kinetic_energy": float(v[KE]),
+        "max_penetration": float(v[MAX_PEN]),
+        "mean_penetration": float(v[SUM_PEN] / n) if n else 0.0,
+        "contacts": n,
+        "manifolds": int(b.contacts.manifold_count[None]),
+        "manifolds_reused": int(b.manifold_cache.reused[None]),
+        "pairs": int(min(b.bp.pair_total[None], b.bp.pair_capacity)),
+        "pairs_reused": int(b.manifold_cache.reused_pairs[None]),
+        "residual_rms": float(np.sqrt(v[RES_SQ_SUM] / (3 * n))) if n else 0.0,
+        "residual_max": float(np.sqrt(v[RES_MAX_SQ])),
+    }

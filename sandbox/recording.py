@@ -9,7 +9,7 @@ stored XOR'ed with it as raw bits: resting bodies give long runs of zero bytes, 
 squeezes, and the encoding is lossless, so a replay can be compared bit for bit.
 
 Replay depends on determinism: with a fixed scene, solver and arch, CPU runs are bitwise
-repeatable (no float atomics in the state; see solvers/blocks.py).
+repeatable (no float atomics in the state; see solvers/mass_splitting.py).
 """
 
 from __future__ import annotations

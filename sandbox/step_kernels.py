@@ -6,7 +6,7 @@ store), each a launch of ~50 us of Python and runtime, and each parallel loop wa
 both worker threads. Every stage's loops are written once as a ``ti.func`` (``*_loops``,
 next to its kernel); here they are chained at the top level of one kernel each, so every
 loop stays a parallel loop run in the same order as the separate launches: the same bits.
-``World`` uses these when the profiler is off (the profiler times the separate kernels).
+``step.py`` uses these when the profiler is off (the profiler times the separate kernels).
 """
 
 import taichi as ti
@@ -16,7 +16,7 @@ from .broadphase import build_dynamic_grid_loops, find_pairs_loops
 from .contacts import collide_pairs_loops
 from .integrate import BIG, check_velocities_loops
 from .persistence import match_contact, store_contacts_loops
-from .solvers.blocks import build_adjacency_loops
+from .solvers.mass_splitting import build_adjacency_loops
 from .solvers.rows import prepare_row, respond_row, set_row_params
 
 

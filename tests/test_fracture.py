@@ -279,7 +279,7 @@ def _world_momentum(world) -> tuple[np.ndarray, np.ndarray, float]:
 
 def _lowest_point(world, i: int) -> float:
     """Lowest world z of body i's collision hulls at its current pose [m]."""
-    spec, st = world._bodies[i], world.state()
+    spec, st = world.body_specs[i], world.state()
     rot = quat_to_matrix(st["orientation"][i].astype(np.float64))
     return min(float(((np.asarray(s.vertices) + s.local_position) @ rot.T + st["position"][i])[:, 2].min())
                for s in spec.shapes)
@@ -297,7 +297,7 @@ def test_torus_and_l_block_rest_stably_on_a_plane(make_world):
     world.step(60)
     after = world.state()
     for i in (TORUS_I, L_BLOCK_I):
-        assert -sag <= _lowest_point(world, i) <= 1e-4, world._bodies[i].name
+        assert -sag <= _lowest_point(world, i) <= 1e-4, world.body_specs[i].name
         assert np.linalg.norm(after["linear_velocity"][i]) < still
         assert np.linalg.norm(after["angular_velocity"][i]) < still / 0.5  # rim speed of a 0.5 m body
         tilt = 2 * math.degrees(math.acos(min(1.0, abs(float(after["orientation"][i][0])))))
@@ -363,7 +363,7 @@ def test_breakable_body_rests_then_breaks_on_impact_and_replays(make_world, scen
     for _ in range(30):
         world.step(1)
         rec.capture()
-    target = world._bodies[TARGET_I]
+    target = world.body_specs[TARGET_I]
     weight = target.mass * 9.81 * world.dt  # [N s] what the floor passes to a resting body per step
     assert world.body_count == 7  # resting: no break
     # at rest the floor's manifold carries exactly the weight; after 0.5 s (five time constants
@@ -379,8 +379,8 @@ def test_breakable_body_rests_then_breaks_on_impact_and_replays(make_world, scen
     assert world.body_count == 7 + 7, "the 100 kg ball at 15 m/s should break the 512 kg target (strength 400 N s)"
     step, event = world.applied_events[-1]
     assert event.kind == "fracture" and event.cause == "impact" and event.bodies == [TARGET_I]
-    assert sum(world._bodies[i].mass for i in [TARGET_I] + list(range(7, 14))) == pytest.approx(target.mass, rel=1e-12)
-    assert not any(b.breakable for b in world._bodies)  # pieces do not break again
+    assert sum(world.body_specs[i].mass for i in [TARGET_I] + list(range(7, 14))) == pytest.approx(target.mass, rel=1e-12)
+    assert not any(b.breakable for b in world.body_specs)  # pieces do not break again
     for _ in range(10):
         world.step(1)
         rec.capture()

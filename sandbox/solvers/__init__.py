@@ -2,13 +2,18 @@
 warm starting and position correction (solvers/rows.py), so a comparison
 measures the schedule and nothing else.
 
-| name                   | visits                    | combines                               |
-|------------------------|---------------------------|----------------------------------------|
-| pgs                    | manifolds, serial order   | in place (Gauss-Seidel)                |
-| pgs-colored            | colours in sequence       | in place, parallel within a colour     |
-| jacobi                 | points, all in parallel   | sum of increments x relaxation         |
-| mass-splitting         | points, all in parallel   | split masses, average of sub-bodies    |
-| block-mass-splitting   | manifolds, in parallel    | split masses per manifold, average     |
+Each solver is *described* here by data, and ``solvers/schedule.py`` turns a
+description into kernel calls: no code outside this package compares solver names.
+
+| name                   | visits                  | block    | combines                              |
+|------------------------|-------------------------|----------|---------------------------------------|
+| pgs                    | serial, in buffer order | manifold | in place (Gauss-Seidel)               |
+| pgs-colored            | colour by colour        | manifold | in place, parallel within a colour    |
+| jacobi                 | all blocks at once      | point    | sum of increments x relaxation        |
+| mass-splitting         | all blocks at once      | point    | split masses, average of sub-bodies   |
+| block-mass-splitting   | all blocks at once      | manifold | split masses per manifold, average    |
+
+This module stays importable without Taichi: the scene loader reads the registry.
 """
 
 from __future__ import annotations
@@ -16,29 +21,92 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..errors import SandboxError
+from ..settings import ITERATION_LAUNCHES
+
+VISITS = ("serial", "colored", "blocks")
+"""How a sweep visits the blocks: one after another in buffer order, the colours of a
+greedy graph colouring in sequence (each colour in parallel), or all blocks at once from
+the same velocities with a deterministic merge (mass_splitting.py)."""
+
+BLOCKS = ("point", "manifold")
+"""What one block is: a contact point, or a manifold (every point of one shape pair)."""
+
+COMBINES = ("in-place", "jacobi", "split")
+"""How a block's result reaches its bodies: written in place (Gauss-Seidel); the sum of
+every block's change times a relaxation (projected Jacobi: one global split factor); the
+average of the sub-bodies of a body split by its block count (mass splitting)."""
+
+LAUNCHES = tuple(launch for launch in ITERATION_LAUNCHES if launch != "auto")
+"""How the iteration loop can be launched (``Settings.iteration_launch``, solvers/substep.py)."""
 
 
 @dataclass(frozen=True)
 class SolverInfo:
+    """One solver as a schedule over the shared contact rows (module docstring)."""
+
     name: str
-    block: str  # "point" or "manifold"
     description: str
-    defaults: dict = field(default_factory=dict)
+    visit: str  # one of VISITS
+    block: str  # one of BLOCKS
+    combine: str  # one of COMBINES
+    defaults: dict = field(default_factory=dict)  # its options, with their defaults
+
+    def __post_init__(self):
+        for what, value, allowed in (("visit", self.visit, VISITS), ("block", self.block, BLOCKS),
+                                     ("combine", self.combine, COMBINES)):
+            if value not in allowed:
+                raise ValueError(f"solver {self.name!r}: {what} {value!r} is not one of {allowed}")
+        if (self.visit == "blocks") == (self.combine == "in-place"):
+            raise ValueError(f"solver {self.name!r}: blocks visited all at once need a merge, serial ones none")
+
+    @property
+    def scales_masses(self) -> bool:
+        """A block sees its bodies' inverse masses and inertias scaled: by the body's block
+        count over the relaxation (split), or by 1 / relaxation (Jacobi)."""
+        return self.combine != "in-place"
+
+    @property
+    def splits_masses(self) -> bool:
+        """The scale is each body's own block count (mass splitting), not one global factor."""
+        return self.combine == "split"
+
+    @property
+    def default_relaxation(self) -> float | None:
+        """Relaxation when the ``relaxation`` option is not given. Mass splitting: 1, the plain
+        average, which converges (method.md 1.7). Jacobi: None, i.e. ``Settings.jacobi_relaxation``
+        (plain Jacobi overshoots). In place: 1, since only the warm start uses the merge."""
+        return None if self.combine == "jacobi" else 1.0
+
+    @property
+    def needs_coloring(self) -> bool:
+        """The schedule colours the manifolds every step (and reports its colour count)."""
+        return self.visit == "colored"
+
+    @property
+    def launches(self) -> tuple[str, ...]:
+        """The iteration launches this schedule can run: a serial sweep has nothing to share
+        between threads, and a colour count known only on the device cannot be unrolled into
+        one launch per substep (it launches per colour instead)."""
+        cannot = {"serial": ("shared",), "colored": ("per-substep",)}.get(self.visit, ())
+        return tuple(launch for launch in LAUNCHES if launch not in cannot)
 
 
 SOLVERS = {
-    "pgs": SolverInfo("pgs", "manifold", "serial projected Gauss-Seidel (the deterministic reference)"),
+    "pgs": SolverInfo("pgs", "serial projected Gauss-Seidel (the deterministic reference)",
+                      visit="serial", block="manifold", combine="in-place"),
     "pgs-colored": SolverInfo(
-        "pgs-colored", "manifold", "parallel PGS over graph colours; shuffle=True permutes order every step",
-        {"shuffle": False, "seed": 0},
+        "pgs-colored", "parallel PGS over graph colours; shuffle=True permutes order every step",
+        visit="colored", block="manifold", combine="in-place", defaults={"shuffle": False, "seed": 0},
     ),
-    "jacobi": SolverInfo("jacobi", "point", "projected Jacobi with relaxation", {"relaxation": None}),
+    "jacobi": SolverInfo("jacobi", "projected Jacobi with relaxation",
+                         visit="blocks", block="point", combine="jacobi", defaults={"relaxation": None}),
     "mass-splitting": SolverInfo(
-        "mass-splitting", "point", "Tonge et al. 2012, one sub-body per contact point", {"relaxation": None}
+        "mass-splitting", "Tonge et al. 2012, one sub-body per contact point",
+        visit="blocks", block="point", combine="split", defaults={"relaxation": None},
     ),
     "block-mass-splitting": SolverInfo(
-        "block-mass-splitting", "manifold", "Tonge et al. 2012, one sub-body per contact manifold (block)",
-        {"relaxation": None},
+        "block-mass-splitting", "Tonge et al. 2012, one sub-body per contact manifold (block)",
+        visit="blocks", block="manifold", combine="split", defaults={"relaxation": None},
     ),
 }
 
@@ -60,9 +128,8 @@ def check_solver(name: str, iterations: int, options: dict) -> dict:
         r = merged["relaxation"]
         if isinstance(r, bool) or not isinstance(r, (int, float)) or not (0.0 < float(r) < 2.0):
             raise SandboxError(f"{name} relaxation must be in (0, 2), got {r!r}")
-    if name == "pgs-colored":
-        if not isinstance(merged["shuffle"], bool):
-            raise SandboxError(f"pgs-colored option shuffle must be true or false, got {merged['shuffle']!r}")
-        if isinstance(merged["seed"], bool) or not isinstance(merged["seed"], int):
-            raise SandboxError(f"pgs-colored option seed must be an integer, got {merged['seed']!r}")
+    if "shuffle" in merged and not isinstance(merged["shuffle"], bool):
+        raise SandboxError(f"{name} option shuffle must be true or false, got {merged['shuffle']!r}")
+    if "seed" in merged and (isinstance(merged["seed"], bool) or not isinstance(merged["seed"], int)):
+        raise SandboxError(f"{name} option seed must be an integer, got {merged['seed']!r}")
     return merged

@@ -5,7 +5,7 @@ One iteration is a substep: gravity, warm start, biased sweep(s), position updat
 sweep(s). Run stage by stage that is 5+ launches per iteration, and on a small scene the
 launches, not the arithmetic, set the cost (apis.md 4.5: ~20 us of Python and runtime per
 launch; measured here ~60 % of a 1000-box pile's step). Every phase is written once as a
-``ti.func`` holding its loop(s) (integrate.py, blocks.py, pgs.py); this module only chains
+``ti.func`` holding its loop(s) (integrate.py, mass_splitting.py, pgs.py); this module only chains
 them, in two ways:
 
 * ``iterate_in_order``: the whole iteration loop in ONE launch. Its outer loop over the
@@ -26,7 +26,8 @@ them, in two ways:
   again, with both cores and without a thread-pool dispatch per phase (~50 us each on
   the 2-core VM, benchmarks/loop_dispatch.py): the CPU default.
 
-``World`` picks one (``Settings.iteration_launch``) and keeps the stage-by-stage kernels
+``Schedule.launch`` (solvers/schedule.py) picks one from ``Settings.iteration_launch``
+and what the solver's description allows; ``step.py`` keeps the stage-by-stage kernels
 for the profiler (one timer per stage) and for residual recording (a read per sweep).
 """
 
@@ -35,7 +36,7 @@ import taichi as ti
 from ..impact import accumulate_points_loop, add_point_impulse
 from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loop
 from . import team as tm
-from .blocks import gather_body, sweep_block, sweep_blocks, warm_block, warm_start_blocks
+from .mass_splitting import gather_body, sweep_block, sweep_blocks, warm_block, warm_start_blocks
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX
 
@@ -61,7 +62,7 @@ def _sweep(schedule: ti.template(), s: ti.template(), rows: ti.template(), c: ti
 def _start_substep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                    kind: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
     """Gravity and warm start of a substep (``active`` = 0 skips both: the Jacobi family's
-    later substeps get them from the previous relax sweep, blocks.sweep_blocks)."""
+    later substeps get them from the previous relax sweep, mass_splitting.sweep_blocks)."""
     if ti.static(warm):
         warm_start_blocks(s, rows, c, bodies, kind, gravity, h, active)
     else:
@@ -107,7 +108,7 @@ def substep_parallel(s: ti.template(), rows: ti.template(), c: ti.template(), bo
                      gravity: vec3, h: ti.f32, first: ti.i32, then_warm: ti.i32):
     """One substep of ``h`` with one sweep each, every phase's loops parallel, in one launch.
     ``first``: this substep does its own gravity and warm start; ``then_warm``: its relax
-    sweep does the next one's (both 1 / 0 decided by ``World`` with ``folds_warm_start``)."""
+    sweep does the next one's (both 1 / 0 decided by ``Schedule.iterate`` with ``folds_warm_start``)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     _start_substep(s, rows, c, bodies, kind, warm, gravity, h, first)
     _sweep(schedule, s, rows, c, bodies, col, kind, BIASED, friction, 0, gravity, h)

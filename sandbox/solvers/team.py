@@ -24,15 +24,11 @@ finished" read that lets the next phase start.
 
 import taichi as ti
 
+from ..cpu_workers import TASK_ITEMS, cpu_threads  # noqa: F401  (the team's size: one member per worker)
+
 CHUNK = 64
 """Items per claim: large enough that the shared counters are touched rarely (a settled
 1000-box pile has ~75 chunks per block phase), small enough to balance two threads."""
-
-TASK_ITEMS = 512
-"""Items per task of a CPU range-for in Taichi 1.7 (runtime.cpp: adaptive block size
-max(512, n / (threads x 32))): a top-level loop over ``members x TASK_ITEMS`` items
-starting a member at every multiple of it gives one member per task, i.e. per thread.
-Should a Taichi version split it otherwise, the team only gets smaller, never wrong."""
 
 
 @ti.data_oriented
@@ -54,13 +50,6 @@ def team_for(phases: int, members: int) -> Team:
     if size not in _teams:
         _teams[size] = Team(size)
     return _teams[size]
-
-
-def cpu_threads() -> int:
-    """Threads Taichi's CPU runtime runs a parallel loop on (``cpu_max_num_threads``)."""
-    from taichi.lang import impl
-
-    return int(impl.current_cfg().cpu_max_num_threads)
 
 
 @ti.func
@@ -103,18 +92,3 @@ def wait(team: ti.template(), p: ti.i32, n: ti.i32):
     solved by running members (an atomic read, so the load is never hoisted)."""
     while ti.atomic_add(team.finished[p], 0) < n:
         pass
-
-
-@ti.kernel
-def keep_members_busy(items: ti.i32, iterations: ti.i32) -> ti.f32:
-    """A top-level loop started like a team (one member per ``TASK_ITEMS``), each member a
-    dependent chain of ``iterations`` steps: keeps every CPU worker busy at once, for a
-    while, so that backend.pin_cpu_workers can tell which threads they are."""
-    total = 0.0
-    for t in range(items):
-        if t % TASK_ITEMS == 0:
-            x = 1.0
-            for _ in range(iterations):
-                x = x * 1.0000001 + 1e-7  # grows: no fixed point to stop at, nothing to fold
-            total += x
-    return total

@@ -1,32 +1,34 @@
-"""Blocks, body adjacency and impulse slots: the deterministic scatter/gather that
-projected Jacobi and both mass-splitting solvers share (method.md 1.6 and 1.11).
+"""Mass splitting (Tonge et al. 2012, method.md 1.6 and 1.11): every contact block solved at
+once on its own copies of its bodies, each body's impulses merged by a deterministic
+scatter/gather. Projected Jacobi is the same schedule with one global split factor.
 
-A *block* is either one contact point (per-point Jacobi / mass splitting) or one
-manifold, i.e. all points of one shape pair (block mass splitting; also the unit
-the PGS solvers visit). Each block has two endpoints (its bodies a and b). For
-every dynamic body we build, per step, the sorted list of endpoints touching it
-(counting sort by body, then a per-body sort, so thread timing never changes
-the order). A sweep writes one velocity change per endpoint into its slot;
-each body then sums its slots in that fixed order. No float atomics, so CPU
-runs are bitwise repeatable.
+A *block* is either one contact point (``mass-splitting``, ``jacobi``) or one manifold,
+i.e. all points of one shape pair (``block-mass-splitting``; also the unit the PGS
+solvers visit). Each block has two endpoints (its bodies a and b). For every dynamic
+body we build, per step, the sorted list of endpoints touching it (counting sort by
+body, then a per-body sort, so thread timing never changes the order). A sweep writes
+one velocity change per endpoint into its slot; each body then sums its slots in that
+fixed order. No float atomics, so CPU runs are bitwise repeatable.
 
-Per body, ``scale`` multiplies inverse mass and inertia inside a block and
-``weight`` multiplies the velocity change written to the slot:
-* mass splitting: scale = n_b (blocks touching b), weight = 1/n_b — the average
-  of the n_b sub-body velocities, i.e. every impulse applied with the full mass;
-  with over-relaxation omega (0 < omega < 2 keeps the convergence proof,
-  method.md 1.7) scale = n_b / omega and weight = omega / n_b;
-* projected Jacobi with relaxation omega: scale = 1/omega, weight = omega. The
-  step becomes lambda += omega * dlambda (K scaled by 1/omega), and the impulse
-  written to the body equals the change of the accumulated lambda, so warm
-  starting stays consistent. It is mass splitting with one global split factor
-  1/omega instead of each body's own count n_b;
-* warm start: scale = 1, weight = 1 (plain sum of last step's impulses). After the
-  first substep the warm start rides on the previous substep's last relax sweep
-  (``sweep_blocks``, ``then_warm``): the impulses are applied once more to the block's
-  velocity copies with the scaled responses, which the weight turns back into full-mass
-  changes (scale x weight = 1 in both Jacobi modes); one pass over the blocks fewer, and
-  no per-point trip through the body's inertia.
+Per body, ``scale`` multiplies inverse mass and inertia inside a block and ``weight``
+multiplies the velocity change written to the slot:
+* mass splitting (``MODE_SPLIT``): scale = n_b (blocks touching b), weight = 1/n_b: the
+  body is split into n_b sub-bodies of mass m / n_b, and the merge is the average of the
+  n_b sub-body velocities, i.e. every impulse applied with the full mass; with
+  over-relaxation omega (0 < omega < 2 keeps the convergence proof, method.md 1.7)
+  scale = n_b / omega and weight = omega / n_b;
+* projected Jacobi with relaxation omega (``MODE_JACOBI``): scale = 1/omega, weight =
+  omega, i.e. mass splitting with one global split factor 1/omega instead of each
+  body's own count n_b. The step becomes lambda += omega * dlambda (K scaled by
+  1/omega), and the impulse written to the body equals the change of the accumulated
+  lambda, so warm starting stays consistent;
+* warm start: scale = 1, weight = 1 (the plain sum of last step's impulses with full
+  masses; the PGS solvers use this part too). After the first substep the warm start
+  rides on the previous substep's last relax sweep (``sweep_blocks``, ``then_warm``):
+  the impulses are applied once more to the block's velocity copies with the scaled
+  responses, which the weight turns back into full-mass changes (scale x weight = 1 in
+  both modes); one pass over the blocks fewer, and no per-point trip through the body's
+  inertia.
 """
 
 

@@ -1,0 +1,276 @@
+"""A world's contents and every edit of them: the live body list (``BodySpec``s), the host
+arrays built from it (build.py) and the device buffers they are uploaded into (buffers.py).
+
+Edits (add, remove, fracture, set a velocity, apply an impulse) run between steps. Those that
+change the body list rebuild the host arrays and upload them: every other body keeps its
+state (read back from the device first), warm-start impulses are dropped once, and the
+buffers move to a larger capacity class only when the new list needs it (a class once
+compiled stays, so removing or fracturing never recompiles for a smaller one).
+
+Fracture (``fracture.py``) replaces a body by its pieces through the same rebuild: piece 0
+takes the broken body's index, so the indices of the other bodies never change. The other
+pieces of a scripted or API fracture are appended (before any impact pieces); those of an
+impact fracture go at the very end, so the indices a scene's timeline was resolved to at
+load time stay valid however bodies break on impact. Breakable bodies (``strength``) are
+watched by ``impact.py`` only when the scene has some; one that broke in a step is
+fractured at the start of the next step, before that step's scripted events, as a logged
+event (``take_breaks``: the world applies and logs it), so a replay applies it from the log.
+
+Nothing here knows the World or the solvers: the facade (world.py) calls these methods.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from . import buffers
+from .build import _quat_mat, host_world, upload
+from .errors import CapacityError, SandboxError
+from .fracture import FractureError, check_arguments, fracture_body, piece_count
+from .scene.spec import EventSpec, Scene
+from .settings import Settings
+from .shapes import HULL
+
+
+class Edits:
+    """The body list, host arrays and device buffers of one world, and their edits."""
+
+    def __init__(self, scene: Scene, settings: Settings, reserve_pieces: int = 0):
+        if isinstance(reserve_pieces, bool) or not isinstance(reserve_pieces, (int, np.integer)) or reserve_pieces < 0:
+            raise SandboxError(f"reserve_pieces must be an integer >= 0, got {reserve_pieces!r}")
+        self.scene = scene
+        self.settings = settings
+        self.bodies = list(scene.bodies)  # the live body list (events add and remove)
+        self.tail = 0  # pieces of impact fractures at the end of the body list
+        self.last_fracture: list = []
+        """``fracture.FractureResult`` of each body of the last fracture (how exact its pieces were)."""
+        self._breaking: list[int] = []  # bodies that broke in the last step, fractured before the next
+        reserve = _fracture_reserve(scene) + int(reserve_pieces)
+        self.host = host_world(scene, settings)
+        self.kinds = _union_kinds(self.host.kinds, (HULL,) if reserve else ())
+        self._finalizer = None
+        self._acquire(self.host.capacities(reserve_pieces=reserve))
+        self._update_breakable()
+
+    # ------------------------------------------------------------------ buffers
+    def _acquire(self, caps) -> None:
+        self.buf = buffers.acquire(caps)
+        self._finalizer = buffers.release_on_collect(self, self.buf)
+        upload(self.host, self.buf, self.settings.contact_margin)
+
+    def close(self) -> None:
+        """Give the device buffers back to the process pool (also done when collected)."""
+        if self._finalizer is not None:
+            self._finalizer()
+            self._finalizer = None
+
+    def grow_if_needed(self) -> bool:
+        """After a broadphase overflow: move to a bigger buffer class, keeping the body state."""
+        from .bodies import restore_good_state
+
+        b = self.buf
+        entries = int(b.bp.entry_total[None])
+        pairs = int(b.bp.pair_total[None])
+        if entries <= b.bp.entry_capacity and pairs <= b.bp.pair_capacity:
+            return False
+        restore_good_state(b.bodies)
+        n = len(self.host.body_arrays["inv_mass"])
+        for k, v in b.bodies.host_state().items():
+            self.host.body_arrays[k] = v[:n]
+        caps = b.caps.grown(grid_entries=max(b.caps.grid_entries, 2 * entries), pairs=max(b.caps.pairs, 2 * pairs))
+        self.close()
+        self._acquire(caps)
+        return True
+
+    def _rebuild(self, bodies: list) -> None:
+        self.bodies = bodies
+        self.host = host_world(dataclasses.replace(self.scene, bodies=bodies), self.settings)
+        self.kinds = _union_kinds(self.kinds, self.host.kinds)  # a kind once compiled stays: no recompile back
+        old = self.buf.caps
+        caps = self.host.capacities(pairs=old.pairs, grid_entries=old.grid_entries).covering(old)
+        if caps == old:
+            upload(self.host, self.buf, self.settings.contact_margin)
+        else:
+            self.close()
+            self._acquire(caps)
+        self._update_breakable()
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def body_count(self) -> int:
+        return len(self.bodies)
+
+    def body_name(self, i: int) -> str:
+        if 0 <= i < len(self.bodies) and self.bodies[i].name:
+            return f" ({self.bodies[i].name!r})"
+        return ""
+
+    def check_indices(self, indices, what: str, dynamic: bool = False) -> list[int]:
+        idx = [indices] if isinstance(indices, (int, np.integer)) else list(indices)
+        n = len(self.bodies)
+        for i in idx:
+            if isinstance(i, bool) or not isinstance(i, (int, np.integer)) or not 0 <= i < n:
+                raise SandboxError(f"{what}: no body {i!r} (the world has bodies 0..{n - 1})")
+            if dynamic and self.bodies[i].static:
+                raise SandboxError(f"{what}: body {i}{self.body_name(i)} is static and cannot be moved")
+        return [int(i) for i in idx]
+
+    def live_specs(self) -> list:
+        """The current body list with positions and velocities read back from the device."""
+        st = self.buf.bodies.host_state()
+        return [dataclasses.replace(b, position=st["pos"][i], orientation=st["rot"][i],
+                                    linear_velocity=st["lin_vel"][i], angular_velocity=st["ang_vel"][i])
+                for i, b in enumerate(self.bodies)]
+
+    def _check_body_budget(self, count: int, what: str) -> None:
+        if count > self.settings.max_bodies:
+            raise CapacityError(f"{what} would make {count} bodies; this world holds at most "
+                                f"{self.settings.max_bodies} (Settings.max_bodies: raise it with "
+                                "World(..., settings=Settings().replace(max_bodies=...)))")
+
+    # ------------------------------------------------------------------ edits of the body list
+    def add(self, bodies: list) -> list[int]:
+        """Append bodies before the pieces of impact fractures; returns their indices."""
+        live = self.live_specs()
+        self._check_body_budget(len(live) + len(bodies), "adding bodies")
+        at = len(live) - self.tail
+        self._rebuild(live[:at] + list(bodies) + live[at:])
+        return list(range(at, at + len(bodies)))
+
+    def remove(self, indices: list[int]) -> None:
+        """Remove bodies (indices checked by ``check_indices``); later bodies move down."""
+        drop = set(indices)
+        self.tail -= sum(1 for i in drop if i >= len(self.bodies) - self.tail)
+        self._rebuild([b for i, b in enumerate(self.live_specs()) if i not in drop])
+
+    def check_fracture(self, bodies, pieces: int, seed: int, impulse: float) -> list[int]:
+        """The indices to fracture, or SandboxError / FractureError naming what is wrong."""
+        try:
+            check_arguments(pieces, seed, impulse)
+        except FractureError as exc:
+            raise FractureError(f"fracture: {exc}") from None
+        idx = self.check_indices(bodies, "fracture")
+        if not idx:
+            raise SandboxError("fracture: no body given")
+        if len(set(idx)) != len(idx):
+            raise SandboxError(f"fracture: a body is listed twice in {idx}")
+        for i in idx:
+            if self.bodies[i].static:
+                raise SandboxError(f"fracture: body {i}{self.body_name(i)} is static and cannot be fractured")
+        return idx
+
+    def fracture(self, idx: list[int], pieces: int, seed: int, impulse: float, impact: bool) -> list[int]:
+        """Replace each body of ``idx`` (checked) by its pieces (module docstring); returns the
+        pieces' indices. A body that cannot be split raises FractureError, the list unchanged."""
+        live = self.live_specs()
+        results = []
+        for k, i in enumerate(idx):
+            try:
+                results.append(fracture_body(live[i], pieces=pieces, seed=int(seed) + k,
+                                             impulse=impulse, min_piece_size=self.settings.fracture_min_piece_size))
+            except FractureError as exc:
+                raise FractureError(f"fracture: body {i}{self.body_name(i)} stays whole: {exc}") from None
+        extras = [piece for r in results for piece in r.bodies[1:]]
+        self._check_body_budget(len(live) + len(extras),
+                                f"fracturing {len(idx)} body(ies) into {len(extras) + len(idx)} pieces")
+        for i, r in zip(idx, results):
+            live[i] = r.bodies[0]
+        at = len(live) if impact else len(live) - self.tail
+        self._rebuild(live[:at] + extras + live[at:])
+        if impact:
+            self.tail += len(extras)
+        self.last_fracture = results
+        out, next_index = [], at
+        for i, r in zip(idx, results):
+            out.append(i)
+            out.extend(range(next_index, next_index + len(r.bodies) - 1))
+            next_index += len(r.bodies) - 1
+        return out
+
+    # ------------------------------------------------------------------ edits of the state
+    def set_velocity(self, idx: list[int], linear=None, angular=None) -> None:
+        b = self.buf.bodies
+        for name, value in (("lin_vel", linear), ("ang_vel", angular)):
+            if value is not None:
+                v = finite_vector(value, name)
+                field = getattr(b, name)
+                arr = field.to_numpy()
+                arr[idx] = v
+                field.from_numpy(arr)
+
+    def apply_impulse(self, idx: list[int], impulse, point=None) -> None:
+        j = finite_vector(impulse, "impulse")
+        b = self.buf.bodies
+        v, w = b.lin_vel.to_numpy(), b.ang_vel.to_numpy()
+        pos, rot, inv_i = b.pos.to_numpy(), b.rot.to_numpy(), b.inv_inertia.to_numpy()
+        inv_m = b.inv_mass.to_numpy()
+        for i in idx:
+            v[i] += inv_m[i] * j
+            if point is not None:
+                r = _quat_mat(rot[i].astype(np.float64))
+                arm = finite_vector(point, "point") - pos[i]
+                w[i] += (r @ inv_i[i] @ r.T) @ np.cross(arm, j)
+        b.lin_vel.from_numpy(v)
+        b.ang_vel.from_numpy(w)
+
+    # ------------------------------------------------------------------ impact breaks
+    def _update_breakable(self) -> None:
+        """Strength per body (inf: not breakable); the impact monitor runs only when one is finite."""
+        self._strength = np.array([b.strength if b.breakable and not b.static else np.inf for b in self.bodies],
+                                  dtype=np.float64)
+        self.watch_impacts = bool(np.isfinite(self._strength).any())
+
+    def impact_impulses(self) -> np.ndarray:
+        """Largest manifold impulse [N s] each body took in the last step (zeros when unwatched)."""
+        if not self.watch_impacts:
+            return np.zeros(self.body_count)
+        return self.buf.impacts.body_max.to_numpy()[: self.body_count].astype(np.float64)
+
+    def note_breaks(self) -> None:
+        """After a watched step: the bodies whose peak impulse passed their strength."""
+        peak = self.buf.impacts.body_max.to_numpy()[: self.body_count]
+        self._breaking = [int(i) for i in np.flatnonzero(peak > self._strength)]
+
+    def take_breaks(self, step: int, dt: float) -> list[EventSpec]:
+        """The impact fractures of the bodies that broke in the last step, as events to apply
+        (and log) now; the list of broken bodies is emptied."""
+        broken, self._breaking = self._breaking, []
+        return [EventSpec(time=step * dt, kind="fracture", bodies=[i], pieces=int(self.bodies[i].pieces),
+                          seed=int(step), outward_impulse=0.0, cause="impact") for i in broken]
+
+    def keep_whole(self, i: int) -> None:
+        """Body i could not fracture on impact: it stays whole and stops being breakable."""
+        self.bodies[i] = dataclasses.replace(self.bodies[i], breakable=False)
+        self._update_breakable()
+
+
+def _union_kinds(a, b) -> tuple:
+    return tuple(sorted(set(a) | set(b)))
+
+
+def _fracture_reserve(scene: Scene) -> int:
+    """Pieces the scene may create: every breakable body's, and every fracture event's."""
+    bodies = scene.bodies
+    total = sum(piece_count(b, b.pieces) for b in bodies if b.breakable and not b.static)
+    for event in scene.events:
+        if event.kind == "fracture":
+            total += sum(piece_count(bodies[i], event.pieces) if i < len(bodies) else event.pieces
+                         for i in event.bodies)
+    return total
+
+
+def finite_vector(value, what: str) -> np.ndarray:
+    """Three finite numbers as float64, or SandboxError naming ``what``."""
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError):
+        raw = np.asarray(None)
+    has_bool = isinstance(value, (list, tuple)) and any(isinstance(x, (bool, np.bool_)) for x in value)
+    if raw.shape != (3,) or raw.dtype.kind not in "iuf" or has_bool:
+        raise SandboxError(f"{what} must be three numbers, got {value!r}")
+    v = raw.astype(np.float64)
+    if not np.all(np.isfinite(v)):
+        raise SandboxError(f"{what} must be finite, got {value!r}")
+    return v

@@ -1,0 +1,152 @@
+"""A solver description (``SolverInfo``) turned into kernel calls: the per-step set-up, the
+warm start, one sweep, and the whole iteration loop in each launch mode.
+
+Everything that depends on which solver runs is decided here from the description's
+fields, never from its name: how a sweep visits the rows (``pgs.py`` serial or by colour,
+``mass_splitting.py`` all blocks at once), the block kind, the merge mode and relaxation
+of the body adjacency, whether the rows' responses are scaled, whether the manifolds are
+coloured, and which launches of the iteration loop (``substep.py``) the schedule allows.
+The kernels' long argument lists are written once, from a ``Loop`` (the buffers and
+compile-time switches of one step's iteration loop).
+
+Kernels are looked up on their modules at every call (``substep.iterate_shared``, not
+a name imported once), so the benchmarks can wrap them with timers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import taichi as ti
+
+from . import SOLVERS, mass_splitting, pgs, substep, team
+from . import rows as contact_rows
+
+_VISIT = {"serial": substep.PGS, "colored": substep.PGS_COLORED, "blocks": substep.BLOCKS}
+_BLOCK = {"point": mass_splitting.PER_POINT, "manifold": mass_splitting.PER_MANIFOLD}
+_FALLBACK = {"shared": "one", "per-substep": "per-stage"}
+"""The launch to use instead when a schedule cannot run the one asked for (SolverInfo.launches)."""
+
+
+@dataclass(frozen=True)
+class Loop:
+    """One step's iteration loop: the buffers, the compile-time switches and the substep."""
+
+    buf: object  # buffers.BufferSet
+    friction: bool  # friction rows are solved
+    warm: bool  # last step's impulses warm start the first substep
+    watch: bool  # each substep's normal impulses go to the impact monitor (impact.py)
+    gravity: object  # ti.math.vec3 [m/s^2]
+    h: float  # substep [s]
+    iterations: int  # substeps per step
+    sweeps: int  # sweeps per substep (Settings.sweeps)
+
+
+class Schedule:
+    """The calls of one solver choice (``name``, ``options`` as ``check_solver`` returns them)."""
+
+    def __init__(self, name: str, options: dict):
+        self.info = SOLVERS[name]
+        self.options = dict(options)
+        self.visit = _VISIT[self.info.visit]
+        self.kind = _BLOCK[self.info.block]
+        self.mode = mass_splitting.MODE_SPLIT if self.info.splits_masses else mass_splitting.MODE_JACOBI
+        self._color_starts = None  # this step's colour ranges, read once by the first sweep that needs them
+        self._color_count = 0
+
+    # ------------------------------------------------------------------ per step
+    def relaxation(self, settings) -> float:
+        """omega of the merge: the ``relaxation`` option, else the description's default."""
+        omega = self.options.get("relaxation") or self.info.default_relaxation or settings.jacobi_relaxation
+        return float(omega)
+
+    def adjacency_args(self, buf, settings) -> tuple:
+        """(block scratch, kind, mode, omega, scaled responses): the schedule's arguments of
+        ``build_adjacency`` / ``prepare_response`` and of the fused ``step_kernels.prepare_step``."""
+        return buf.blocks, self.kind, self.mode, self.relaxation(settings), self.info.scales_masses
+
+    def prepare(self, buf, settings, step: int) -> None:
+        """After the rows: body adjacency, scaled responses and colouring, as separate launches."""
+        blk, kind, mode, omega, scaled = self.adjacency_args(buf, settings)
+        mass_splitting.build_adjacency(blk, buf.contacts, buf.bodies, kind, mode, omega)
+        contact_rows.prepare_response(buf.rows, buf.contacts, buf.bodies, blk.scale, scaled)
+        self.color(buf, step)
+
+    def color(self, buf, step: int) -> None:
+        """Colour this step's manifolds when the schedule visits by colour (seeded by the step)."""
+        if self.info.needs_coloring:
+            shuffle, seed = int(self.options["shuffle"]), int(self.options["seed"])
+            pgs.color_manifolds(buf.coloring, buf.contacts, buf.bodies, shuffle, seed, step)
+        self._color_starts = None
+
+    def color_count(self, buf) -> int | None:
+        """Colours used in the last step; None when the schedule does not colour."""
+        return int(buf.coloring.color_count[None]) if self.info.needs_coloring else None
+
+    # ------------------------------------------------------------------ stage by stage
+    def folds_warm_start(self, warm: bool) -> bool:
+        """Gravity and warm start of a later substep ride on the previous relax sweep."""
+        return substep.folds_warm_start(self.visit, warm)
+
+    def warm_start(self, buf, gravity, h: float) -> None:
+        """Gravity, then last step's matched impulses with the full masses, as one launch."""
+        mass_splitting.warm_start(buf.blocks, buf.rows, buf.contacts, buf.bodies, self.kind, gravity, h)
+
+    def sweep(self, buf, mode: int, friction: bool, then_warm: int = 0, gravity=None, h: float = 0.0) -> None:
+        """One pass over every contact row (``then_warm``: mass_splitting.sweep_blocks)."""
+        rows, c, bodies = buf.rows, buf.contacts, buf.bodies
+        if self.info.visit == "serial":
+            pgs.pgs_serial(rows, c, bodies, mode, friction)
+        elif self.info.visit == "colored":
+            col, overflow = buf.coloring, pgs.MAX_COLORS
+            if self._color_starts is None:  # one launch per colour: the ranges come to the host once a step
+                self._color_starts = pgs.color_ranges(col)
+                self._color_count = int(col.color_count[None])
+            starts = self._color_starts
+            for k in range(self._color_count):
+                pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]), mode, friction)
+            if starts[overflow + 1] > starts[overflow]:
+                pgs.solve_overflow(rows, c, bodies, col, int(starts[overflow]), int(starts[overflow + 1]), mode,
+                                   friction)
+        else:
+            g = gravity if gravity is not None else ti.math.vec3(0.0)
+            mass_splitting.jacobi_sweep(buf.blocks, rows, c, bodies, self.kind, mode, friction, then_warm, g, h)
+
+    # ------------------------------------------------------------------ the fused iteration loop
+    def launch(self, settings, arch: str) -> str:
+        """Which launch runs the iteration loop (Settings.iteration_launch; "per-stage" is also
+        what a profiled world uses). All give bit-identical results."""
+        launch = settings.iteration_launch
+        if launch == "auto":
+            launch = "shared" if arch == "cpu" else "per-substep"
+        if launch == "shared" and arch != "cpu":
+            launch = "one"  # a GPU block cannot wait for another
+        if launch not in self.info.launches:
+            launch = _FALLBACK[launch]
+        if launch == "per-substep" and settings.sweeps != 1:
+            launch = "per-stage"  # a sweep count is not unrolled into the kernel
+        return launch
+
+    def iterate(self, launch: str, loop: Loop) -> None:
+        """The whole iteration loop in one of the fused launches ("one", "shared", "per-substep")."""
+        if launch == "one":
+            substep.iterate_in_order(*self._loop_args(loop), loop.iterations, loop.sweeps)
+        elif launch == "shared":
+            phases = substep.shared_phase_bound(self.visit, loop.iterations, loop.sweeps)
+            members = team.cpu_threads()
+            substep.iterate_shared(team.team_for(phases, members), *self._loop_args(loop), loop.iterations,
+                                   loop.sweeps, phases, members)
+        elif launch == "per-substep":
+            fold = self.folds_warm_start(loop.warm)
+            k = loop.iterations
+            for i in range(k):
+                warm_here, then_warm = int(i == 0 or not fold), int(fold and i < k - 1)
+                substep.substep_parallel(*self._loop_args(loop), warm_here, then_warm)
+        else:
+            raise ValueError(f"iterate: {launch!r} is not a fused launch")
+
+    def _loop_args(self, loop: Loop) -> tuple:
+        """The arguments every iteration-loop kernel of substep.py starts with."""
+        b = loop.buf
+        return (b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors, self.kind, self.visit, loop.friction,
+                loop.warm, b.impacts, loop.watch, loop.gravity, loop.h)

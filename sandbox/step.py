@@ -1,0 +1,224 @@
+"""The step: a fixed list of named, timed stages over one world's buffers.
+
+The step, stage by stage (names = profile keys = report keys, profile.STAGES):
+
+1. ``broadphase``   AABBs, hash grid, candidate pairs (broadphase.py)
+2. ``narrowphase``  manifolds into the contact buffer (contacts.py)
+3. ``prepare``      rows, warm-start matching, schedule set-up (solvers/)
+4. ``iterations`` substeps of h / iterations (Box2D v3's soft step, see solvers/rows.py):
+   ``integrate_velocities`` (gravity), ``iterate`` (warm start + one biased sweep of the
+   chosen schedule), ``integrate_positions`` (symplectic Euler, conservative rotation,
+   finite guard), ``relax`` (one rigid sweep without position bias)
+5. ``relax``        restitution pass, impulses stored for the next step
+
+Python only orchestrates. With the profiler off, the once-per-step stages run in three
+launches (``step_kernels.py``: state save + broadphase + narrowphase, then rows + matching +
+schedule set-up, then velocity check + contact store; the same loops as the per-stage
+kernels, the same bits). The iteration loop of step 4 is one kernel launch on the CPU,
+shared by its threads (``Settings.iteration_launch``, solvers/substep.py and team.py:
+launch and dispatch overhead, not arithmetic, bound small scenes) or one launch per
+substep on CUDA; with the profiler on it runs stage by stage, a launch per phase, so that
+each stage has its timer (the unfused path; the iteration loop is then ``iterate`` plus the
+per-phase stages). Which kernels a sweep launches is the schedule's business
+(solvers/schedule.py); this module only orders the stages.
+
+Besides the launches a step makes two small reads: buffer counters after the narrowphase
+(a buffer that overflowed is grown and the step redone from the saved state) and the error
+bits at the end (non-finite state: the last good state is restored and a SimulationError
+names the body and the stage). ``[world] substeps`` repeats the whole step, collision
+included, with dt / substeps (``World.step`` calls ``Stepper.substep`` that many times).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+from . import step_kernels
+from .errors import CapacityError, SimulationError
+from .solvers.schedule import Loop, Schedule
+
+MAX_GROWTH_RETRIES = 6
+
+
+@dataclass(frozen=True)
+class Controls:
+    """What the world's setters chose, read by every substep of one step."""
+
+    schedule: Schedule
+    iterations: int  # substeps of the soft step, one sweep each by default
+    gravity: np.ndarray  # [m/s^2], shape (3,), float32
+    friction: bool  # compile-time: friction rows exist only if asked for
+    restitution: bool
+    record_residuals: bool  # a residual read after every biased sweep (forces the staged path)
+    arch: str
+
+
+class Stepper:
+    """Runs substeps over ``edits``' buffers (edits.py: they may be replaced by a growth)."""
+
+    def __init__(self, edits, profiler):
+        self.edits = edits
+        self.profiler = profiler
+        self.fused = True  # False: the once-per-step stages launch one by one (benchmarks compare)
+        self.residual_history: list[float] = []
+
+    def substep(self, c: Controls, h: float, watch: bool, first: bool, step_count: int) -> None:
+        """One pass of the whole stage list with time step ``h`` [s]; ``watch``: breakable bodies'
+        impulses are monitored (``first``: the step's first substep clears their peaks)."""
+        from .bodies import save_good_state, update_world_inertia
+        from .integrate import check_velocities
+        from .persistence import match_contacts, store_contacts
+        from .solvers.rows import RESTITUTION, prepare_rows, soft_contact_coefficients
+
+        b, s, p = self.edits.buf, self.edits.settings, self.profiler
+        k = c.iterations
+        h_sub = h / k
+        gravity = ti.math.vec3(*c.gravity)
+        fused = self.fused and not p.enabled  # the once-per-step stages in three launches (step_kernels.py)
+        if not fused:
+            save_good_state(b.bodies)
+            b.errors.clear()
+            update_world_inertia(b.bodies)
+        self.residual_history = []
+        b = self._collide_growing(fused, h)
+        if watch:
+            from .impact import clear_bodies, clear_points
+
+            if first:
+                clear_bodies(b.impacts, b.bodies)
+            clear_points(b.impacts, b.contacts)
+        with p.stage("prepare"):
+            bias_rate, softness = soft_contact_coefficients(h_sub, s.contact_hertz, s.contact_damping_ratio)
+            if fused:
+                blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
+                step_kernels.prepare_step(b.rows, b.contacts, b.bodies, b.history, blk, 1.0 / h_sub, bias_rate,
+                                          softness, s.max_push_speed, s.restitution_threshold, s.match_distance,
+                                          s.warm_start / k, kind, mode, omega, scaled)
+                c.schedule.color(b, step_count)
+            else:
+                prepare_rows(b.rows, b.contacts, b.bodies, 1.0 / h_sub, bias_rate, softness, s.max_push_speed,
+                             s.restitution_threshold)
+                match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
+                c.schedule.prepare(b, s, step_count)
+        loop = Loop(b, c.friction, s.warm_start > 0.0, watch, gravity, h_sub, k, s.sweeps)
+        staged = p.enabled or c.record_residuals  # a timer per stage, a residual read per sweep
+        launch = "per-stage" if staged else c.schedule.launch(s, c.arch)
+        if launch == "per-stage":
+            self._iterate_by_stage(c.schedule, loop, c.record_residuals)
+        else:
+            with p.stage("iterate"):
+                c.schedule.iterate(launch, loop)
+        if watch:
+            from .impact import reduce_manifolds
+
+            reduce_manifolds(b.impacts, b.contacts)
+        with p.stage("relax"):
+            if c.restitution and self.edits.host.has_restitution:
+                c.schedule.sweep(b, RESTITUTION, c.friction)
+            if fused:
+                step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, k)
+            else:
+                check_velocities(b.bodies, b.errors)
+                store_contacts(b.history, b.contacts, b.rows, b.shapes, k)
+        self._check_errors(b, step_count)
+
+    def _collide_growing(self, fused: bool, h: float):
+        """Broadphase and narrowphase; an overflowing buffer is grown and the collision redone
+        (a fused retry saves the restored, same, state again and redoes the inertias: same bits)."""
+        for _attempt in range(MAX_GROWTH_RETRIES + 1):
+            b, st = self.edits.buf, self.edits.settings
+            if fused:
+                step_kernels.begin_and_collide(b.bodies, b.errors, b.bp, b.shapes, b.contacts, b.pool,
+                                               b.manifold_cache, st.contact_margin, st.slop, h,
+                                               *st.manifold_reuse_bounds(), self.edits.kinds)
+            else:
+                self._collide(h)
+            if not self.edits.grow_if_needed():
+                return self.edits.buf
+        raise CapacityError("contact buffers kept overflowing after growing; the scene is too dense")
+
+    def _collide(self, h: float) -> None:
+        from .broadphase import build_dynamic_grid, find_pairs
+        from .contacts import collide_pairs
+
+        b, p, st = self.edits.buf, self.profiler, self.edits.settings
+        margin = st.contact_margin
+        with p.stage("broadphase"):
+            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, h, b.errors)
+            find_pairs(b.bp, b.shapes)
+        with p.stage("narrowphase"):
+            collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, st.slop, h,
+                          *st.manifold_reuse_bounds(), self.edits.kinds)
+
+    def _iterate_by_stage(self, schedule: Schedule, loop: Loop, record_residuals: bool) -> None:
+        """The iteration loop a launch per phase, each in its stage. With warm starting, gravity
+        rides on the warm-start pass ("iterate"), and for the Jacobi family both ride on the
+        previous substep's last relax sweep."""
+        from .impact import accumulate_points
+        from .integrate import integrate_positions, integrate_velocities
+        from .solvers.rows import BIASED, RELAX
+
+        b, p, k, sweeps = loop.buf, self.profiler, loop.iterations, loop.sweeps
+        fold = schedule.folds_warm_start(loop.warm)
+        for i in range(k):
+            if i == 0 or not fold:
+                if loop.warm:
+                    with p.stage("iterate"):
+                        schedule.warm_start(b, loop.gravity, loop.h)
+                else:
+                    with p.stage("integrate_velocities"):
+                        integrate_velocities(b.bodies, loop.gravity, loop.h)
+            with p.stage("iterate"):
+                for _ in range(sweeps):
+                    schedule.sweep(b, BIASED, loop.friction)
+                    if record_residuals:
+                        self.residual_history.append(biased_residual_rms(b))
+            with p.stage("integrate_positions"):
+                integrate_positions(b.bodies, loop.h, b.errors)
+            with p.stage("relax"):
+                for j in range(sweeps):
+                    then_warm = int(fold and i < k - 1 and j == sweeps - 1)
+                    schedule.sweep(b, RELAX, loop.friction, then_warm, loop.gravity, loop.h)
+            if loop.watch:
+                accumulate_points(b.impacts, b.contacts, b.rows)
+
+    def _check_errors(self, b, step_count: int) -> None:
+        """The step's error bits as a SimulationError, the world back at its last good state."""
+        flags = int(b.errors.flags[None])
+        if not flags:
+            return
+        from .bodies import restore_good_state
+        from .broadphase import MAX_SPAN_CELLS
+        from .integrate import ERR_POSE, ERR_VELOCITY
+        from .manifold_cache import clear_cache
+        from .persistence import clear_history
+
+        body = int(b.errors.body[None])
+        name = self.edits.body_name(body)
+        if flags & (ERR_VELOCITY | ERR_POSE):
+            stage = "solve (velocity)" if flags & ERR_VELOCITY else "integrate_positions (pose)"
+            problem = f"non-finite {stage} of body {body}{name}"
+        else:
+            v = float(np.linalg.norm(b.bodies.lin_vel[body]))
+            w = float(np.linalg.norm(b.bodies.ang_vel[body]))
+            problem = (f"body {body}{name} reached |v| = {v:.3g} m/s, |w| = {w:.3g} rad/s: its bounds over the "
+                       f"step cover more than {MAX_SPAN_CELLS} broadphase cells of {b.bp.cell_size[None]:.3g} m "
+                       "(the solver diverged, or the body is far larger than the typical one)")
+        restore_good_state(b.bodies)
+        clear_history(b.history)  # this step's impulses are not usable either: no warm start from them
+        clear_cache(b.manifold_cache)  # nor its manifolds (a replay from the good state would not have them)
+        raise SimulationError(f"step {step_count}: {problem}; the world was restored to its last good state")
+
+
+def biased_residual_rms(b) -> float:
+    """RMS residual [m/s] of the biased problem the sweeps are solving right now."""
+    from .metrics import RES_SQ_SUM, compute_metrics
+    from .solvers.rows import BIASED, compute_residuals
+
+    compute_residuals(b.rows, b.contacts, b.bodies, BIASED)
+    compute_metrics(b.metrics, b.bodies, b.contacts, b.rows)
+    n = int(b.contacts.count[None])
+    return float(np.sqrt(b.metrics.values[RES_SQ_SUM] / (3 * n))) if n else 0.0
