@@ -188,7 +188,7 @@ def main(argv=None) -> int:
                        "--quick: 1,4,16)")
     _add_run_flags(bench, arch_default="cpu")
     bench.add_argument("--out", default="out/bench", help="output directory (default: out/bench)")
-    bench.add_argument("--quick", action="store_true", help="small smoke run of every output (~1 min on 2 cores)")
+    bench.add_argument("--quick", action="store_true", help="small smoke run of every output (budget: 2 min on 2 cores)")
     bench.add_argument("--settle", type=int, help="frames before measuring (default 120; --quick 60)")
     bench.add_argument("--window", type=int, help="frames of the error window (default 60; --quick 30)")
     bench.add_argument("--steps", type=int, help="timed steps, once per-stage and once whole (default 60; --quick 30)")

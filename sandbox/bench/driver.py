@@ -35,7 +35,8 @@ QUICK = {
     "scaling_iterations": 4,
 }
 """``--quick``: the 210-box pyramid, the reference and the paper's solver, 1/4/16 iterations, and
-two small piles for scaling: a smoke run of every output in about a minute on a 2-core CPU."""
+two small piles for scaling: a smoke run of every output, within 2 minutes on a 2-core CPU
+(``benchmarks/bench_quick_budget.py`` checks that, ``--cold`` from an empty kernel cache)."""
 
 
 def _options(solver: str, shuffle: bool) -> dict:
