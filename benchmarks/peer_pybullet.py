@@ -26,8 +26,7 @@ import numpy as np
 
 from sandbox import Scene, World
 from sandbox.scene.library import resolve_scene
-from sandbox.bench import pybullet_version
-from sandbox.peers import pybullet_ke, pybullet_world
+from sandbox.peers import pybullet_ke, pybullet_version, pybullet_world
 
 
 def main() -> None:

@@ -1,6 +1,6 @@
-"""The ``sandbox`` command: ``run`` a scene headless (optionally recording it), ``replay`` a
-recording, list the shipped ``scenes``, ``bench`` the solvers; ``serve`` (the web sandbox)
-comes from the ``web`` package as a plugin."""
+"""The ``sandbox`` command (also ``python -m sandbox``): ``run`` a scene headless (optionally
+recording it), ``replay`` a recording, list the shipped ``scenes``, ``bench`` the solvers;
+``serve`` (the web sandbox) comes from the ``web`` package as a plugin."""
 
 from __future__ import annotations
 
@@ -10,12 +10,14 @@ import sys
 import time
 from pathlib import Path
 
+ARCHES = ("cpu", "cuda", "auto")
+
+
 def cmd_run(args) -> int:
     from tqdm import tqdm
 
     from . import Scene, World
-
-    from .scene.library import resolve_scene
+    from .scene import resolve_scene
 
     path = resolve_scene(args.scene)
     scene = Scene.load(path)
@@ -101,8 +103,7 @@ def cmd_replay(args) -> int:
 
 
 def cmd_scenes(args) -> int:
-    from .scene.library import shipped_scenes
-    from .scene.loader import load_scene
+    from .scene import load_scene, shipped_scenes
 
     for path in shipped_scenes():
         try:
@@ -142,6 +143,21 @@ def _register_plugins(sub) -> None:
         ep.load()(sub)
 
 
+def _add_arch(parser, default: str, choices=ARCHES) -> None:
+    parser.add_argument("--arch", choices=list(choices), default=default, help=f"Taichi backend (default: {default})")
+
+
+def _add_run_flags(parser, arch_default: str) -> None:
+    """The flags ``run`` and ``bench`` share: --arch, --shuffle, --quiet."""
+    from .solvers import SOLVERS
+
+    shufflers = ", ".join(name for name, info in SOLVERS.items() if "shuffle" in info.defaults)
+    _add_arch(parser, arch_default)
+    parser.add_argument("--shuffle", action="store_true",
+                        help=f"permute contacts and colours every step (solvers that take it: {shufflers})")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
 def main(argv=None) -> int:
     from .errors import SandboxError
     from .solvers import SOLVERS
@@ -153,15 +169,13 @@ def main(argv=None) -> int:
     run.add_argument("--solver", choices=list(SOLVERS), default=None, help="default: the scene's")
     run.add_argument("--iterations", type=int, default=None, help="default: the scene's")
     run.add_argument("--steps", type=int, default=600)
-    run.add_argument("--arch", choices=["cpu", "cuda", "auto"], default="auto")
-    run.add_argument("--shuffle", action="store_true", help="pgs-colored: permute contacts and colours every step")
+    _add_run_flags(run, arch_default="auto")
     run.add_argument("--report", metavar="FILE.json", help="write a JSON report with timings and per-step series")
-    run.add_argument("--quiet", action="store_true", help="no progress bar")
     run.add_argument("--record", metavar="FILE", help="record scene, settings, events and every frame's transforms")
     run.set_defaults(func=cmd_run)
     rep = sub.add_parser("replay", help="re-simulate a recording and report where it departs, if anywhere")
     rep.add_argument("file")
-    rep.add_argument("--arch", choices=["cpu", "cuda"], default="cpu")
+    _add_arch(rep, "cpu", choices=("cpu", "cuda"))
     rep.set_defaults(func=cmd_replay)
     bench = sub.add_parser("bench", help="error vs cost per scene x solver x iteration count, scaling, pybullet peer",
                            description="Settle each scene, then measure error (residual, penetration, resting kinetic "
@@ -172,9 +186,9 @@ def main(argv=None) -> int:
     bench.add_argument("--solvers", help="comma-separated (default: all; --quick: pgs,mass-splitting)")
     bench.add_argument("--iterations", help="comma-separated counts (default: 1,2,4,8,15,30,60,120,250,500; "
                        "--quick: 1,4,16)")
-    bench.add_argument("--arch", choices=["cpu", "cuda", "auto"], default="cpu")
+    _add_run_flags(bench, arch_default="cpu")
     bench.add_argument("--out", default="out/bench", help="output directory (default: out/bench)")
-    bench.add_argument("--quick", action="store_true", help="small smoke run of every output (~1 min on 2 cores)")
+    bench.add_argument("--quick", action="store_true", help="small smoke run of every output (budget: 2 min on 2 cores)")
     bench.add_argument("--settle", type=int, help="frames before measuring (default 120; --quick 60)")
     bench.add_argument("--window", type=int, help="frames of the error window (default 60; --quick 30)")
     bench.add_argument("--steps", type=int, help="timed steps, once per-stage and once whole (default 60; --quick 30)")
@@ -183,8 +197,6 @@ def main(argv=None) -> int:
     bench.add_argument("--scaling-iterations", type=int, help="iterations in the scaling runs (default 15; --quick 4)")
     bench.add_argument("--no-scaling", action="store_true", help="skip the scaling piles")
     bench.add_argument("--no-peers", action="store_true", help="skip pybullet even when importable")
-    bench.add_argument("--shuffle", action="store_true", help="pgs-colored: permute contacts and colours every step")
-    bench.add_argument("--quiet", action="store_true", help="no progress bar")
     bench.set_defaults(func=cmd_bench)
     scenes = sub.add_parser("scenes", help="list the shipped scenes")
     scenes.set_defaults(func=cmd_scenes)

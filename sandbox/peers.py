@@ -1,13 +1,25 @@
-"""Peer engines on our scenes: pybullet, set up the way the team's anchors (RESULTS.md) were.
+"""Peer engines on our scenes, behind one small interface, for ``sandbox bench`` and the peer scripts.
 
-Boxes as maximal-coordinate rigid bodies with the scene's masses and half extents, static
-planes, friction sqrt(0.5) per body (Bullet multiplies the two coefficients, so every pair gets
-0.5), no damping, no sleeping, ``numSolverIterations`` = iterations. Only box-and-plane scenes
-are translated. Used by ``sandbox bench`` and ``benchmarks/peer_pybullet.py``; needs the
+A peer is a ``Peer`` in ``PEERS``: its name (the ``engine`` column of the bench tables), the
+package that must be importable and the pip extra that installs it, a test of whether a scene
+translates faithfully, and a constructor of a ``PeerWorld`` (step, kinetic energy, contact
+metrics, a body's position, close) whose numbers follow our metrics' definitions. Adding an
+engine means one ``PeerWorld`` class and one ``PEERS`` entry; the bench protocol
+(``sandbox/bench/protocol.py``) runs any of them.
+
+pybullet is set up the way the team's anchors (RESULTS.md) were: boxes as maximal-coordinate
+rigid bodies with the scene's masses and half extents, static planes, friction sqrt(0.5) per
+body (Bullet multiplies the two coefficients, so every pair gets 0.5), no damping, no sleeping,
+``numSolverIterations`` = iterations. Only box-and-plane scenes are translated.
+``benchmarks/peer_pybullet.py`` drives ``pybullet_world`` / ``pybullet_ke`` directly. Needs the
 ``peers`` extra.
 """
 
 from __future__ import annotations
+
+import importlib.util
+from dataclasses import dataclass
+from typing import Callable, Protocol
 
 import numpy as np
 
@@ -15,6 +27,46 @@ from .errors import SandboxError
 from .scene.spec import Scene
 
 
+class PeerWorld(Protocol):
+    """One scene running in a peer engine, measured the way ``World.metrics()`` measures ours."""
+
+    def step(self) -> None: ...
+
+    def kinetic_energy(self) -> float: ...
+
+    def metrics(self) -> dict:
+        """``kinetic_energy`` [J], ``contacts`` (points), ``max_penetration`` and ``mean_penetration`` [m]."""
+        ...
+
+    def position(self, i: int) -> np.ndarray: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class Peer:
+    name: str  # the engine column of the bench tables
+    package: str  # import name that must be found
+    extra: str  # pip extra that installs it
+    translatable: Callable[[Scene], tuple[bool, str]]  # (True, "") or (False, why: "it <why>")
+    open: Callable[[Scene, int], PeerWorld]  # (scene, iterations) -> a running world
+
+    def available(self) -> tuple[bool, str]:
+        """Whether the engine can be imported, and if not, why and how to install it."""
+        if importlib.util.find_spec(self.package) is None:
+            return False, f"{self.package} is not importable (pip install -e '.[{self.extra}]')"
+        return True, ""
+
+    def version(self) -> str:
+        try:
+            from importlib.metadata import version
+
+            return version(self.package)
+        except Exception:
+            return "unknown"
+
+
+# ---------------------------------------------------------------------------------------------- pybullet
 def pybullet_world(scene: Scene, iterations: int):
     import pybullet as pb
 
@@ -54,3 +106,60 @@ def pybullet_ke(pb, cid, ids, masses, inertias) -> float:
         wb = r.T @ np.asarray(w)
         ke += 0.5 * m * np.dot(v, v) + 0.5 * np.dot(wb, inertia * wb)
     return ke
+
+
+def pybullet_version() -> str:
+    return PEERS["pybullet"].version()
+
+
+def translatable_to_pybullet(scene: Scene) -> tuple[bool, str]:
+    """Only scenes that ``pybullet_world`` translates faithfully: dynamic single boxes on planes,
+    friction 0.5 and no restitution everywhere (its set-up), no meshes, events or substeps."""
+    if scene.meshes:
+        return False, "has triangle meshes"
+    if scene.events:
+        return False, "has timeline events"
+    if int(scene.world.substeps) != 1:
+        return False, "uses [world] substeps"
+    for b in scene.bodies:
+        if b.static or len(b.shapes) != 1 or b.shapes[0].kind != "box":
+            return False, "has bodies other than dynamic single boxes"
+        if abs(b.friction - 0.5) > 1e-9 or b.restitution != 0.0:
+            return False, "has friction other than 0.5 or restitution"
+    for p in scene.planes:
+        if abs(p.friction - 0.5) > 1e-9 or p.restitution != 0.0:
+            return False, "has a plane with friction other than 0.5 or restitution"
+    return True, ""
+
+
+class PyBulletWorld:
+    """A scene in pybullet (``pybullet_world``), with our metrics' definitions."""
+
+    def __init__(self, scene: Scene, iterations: int):
+        self.pb, self.cid, self.ids, self.masses, self.inertias = pybullet_world(scene, iterations)
+
+    def step(self) -> None:
+        self.pb.stepSimulation(physicsClientId=self.cid)
+
+    def kinetic_energy(self) -> float:
+        return float(pybullet_ke(self.pb, self.cid, self.ids, self.masses, self.inertias))
+
+    def metrics(self) -> dict:
+        pts = self.pb.getContactPoints(physicsClientId=self.cid)
+        pen = np.array([max(0.0, -p[8]) for p in pts]) if pts else np.zeros(0)
+        return {"kinetic_energy": self.kinetic_energy(), "contacts": len(pts),
+                "max_penetration": float(pen.max()) if len(pen) else 0.0,
+                "mean_penetration": float(pen.mean()) if len(pen) else 0.0}
+
+    def position(self, i: int) -> np.ndarray:
+        return np.asarray(self.pb.getBasePositionAndOrientation(self.ids[i], physicsClientId=self.cid)[0])
+
+    def close(self) -> None:
+        self.pb.disconnect(physicsClientId=self.cid)
+
+
+PEERS = {
+    "pybullet": Peer("pybullet", package="pybullet", extra="peers", translatable=translatable_to_pybullet,
+                     open=PyBulletWorld),
+}
+"""Every peer engine by name. ``sandbox bench`` runs ``pybullet`` beside our solvers."""

@@ -1,18 +1,17 @@
-"""``sandbox bench --quick``: runs in under 2 minutes on the 2-core CPU, and its tables and
-plots have the promised shape, finite numbers and the monotonicity that must hold."""
+"""``sandbox bench --quick``: its tables and plots have the promised shape, finite numbers and
+the monotonicity that must hold. Its time budget is checked by benchmarks/bench_quick_budget.py
+(a budget depends on the machine and on a warm kernel cache; a test does not assert one)."""
 
 import csv
 import importlib.util
 import json
 import math
-import time
 
 import pytest
 
 from sandbox import bench
 from sandbox.cli import main
 
-BUDGET_S = 120.0
 TEXT_COLUMNS = {"scene", "engine", "solver", "options", "arch", "status"}
 HAS_PYBULLET = importlib.util.find_spec("pybullet") is not None
 
@@ -21,9 +20,7 @@ HAS_PYBULLET = importlib.util.find_spec("pybullet") is not None
 def quick(tmp_path_factory):
     pytest.importorskip("matplotlib")
     out = tmp_path_factory.mktemp("bench")
-    t0 = time.perf_counter()
     rc = main(["bench", "--quick", "--quiet", "--out", str(out)])
-    elapsed = time.perf_counter() - t0
     with open(out / "bench.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     with open(out / "scaling.csv", newline="") as fh:
@@ -33,7 +30,7 @@ def quick(tmp_path_factory):
         raise AssertionError(f"bench.json holds {token}")
 
     doc = json.loads((out / "bench.json").read_text(), parse_constant=no_nan)
-    return {"rc": rc, "elapsed": elapsed, "out": out, "rows": rows, "scaling": scaling, "doc": doc}
+    return {"rc": rc, "out": out, "rows": rows, "scaling": scaling, "doc": doc}
 
 
 def _sandbox_rows(rows, scene, solver):
@@ -41,9 +38,8 @@ def _sandbox_rows(rows, scene, solver):
                   key=lambda r: int(r["iterations"]))
 
 
-def test_quick_run_finishes_within_budget(quick):
+def test_quick_run_succeeds(quick):
     assert quick["rc"] == 0
-    assert quick["elapsed"] < BUDGET_S, f"bench --quick took {quick['elapsed']:.0f} s"
 
 
 def test_one_row_per_scene_solver_iteration(quick):

@@ -6,7 +6,7 @@ problem becomes a ``SceneError`` naming the source, the entry (``body[3].radius`
 and what is wrong; nothing else escapes (numbers that overflow a float, lists of
 the wrong length or of strings, NaN and inf all end here).
 
-The schema itself (which keys each table allows) lives in ``loader.py``; the
+The schema itself (which keys each table allows) lives in ``keys.py``; the
 user-facing description of every key is ``scenes/README.md``.
 """
 

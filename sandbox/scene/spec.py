@@ -15,6 +15,7 @@ is the centre of mass.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable, ClassVar
 
 import numpy as np
 
@@ -99,7 +100,7 @@ class EventSpec:
     iterations: int | None = None  # solver / iterations: the new iteration count
     options: dict = field(default_factory=dict)  # solver: its options
     gravity: np.ndarray | None = None  # gravity: the new gravity vector [m/s^2]
-    effects: tuple | None = None  # effects: the contact effects now on (a subset of loader.EFFECTS)
+    effects: tuple | None = None  # effects: the contact effects now on (a subset of keys.EFFECTS)
     dt: float | None = None  # timestep: the new step [s]
     substeps: int | None = None  # timestep: the new number of substeps
     pieces: int | None = None  # fracture: Voronoi pieces of a convex body
@@ -137,14 +138,8 @@ class Scene:
     description: str = ""
     warnings: list = field(default_factory=list)  # what the loader repaired or fell back on, one sentence each
 
-    @classmethod
-    def load(cls, path) -> "Scene":
-        from .loader import load_scene
-
-        return load_scene(path)
-
-    @classmethod
-    def from_dict(cls, data: dict, *, source: str = "<dict>", base_dir=None) -> "Scene":
-        from .loader import scene_from_dict
-
-        return scene_from_dict(data, source=source, base_dir=base_dir)
+    # ``Scene.load(path)`` and ``Scene.from_dict(data, *, source="<dict>", base_dir=None)``: the
+    # loader's entry points as class methods, attached by ``scene/__init__.py``. They are not
+    # written here because the loader imports this module; this one never imports it back.
+    load: ClassVar[Callable[..., Scene]]
+    from_dict: ClassVar[Callable[..., Scene]]
