@@ -16,10 +16,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from sandbox.scene.library import shipped_scenes
-from sandbox.scene.loader import EFFECTS
-from sandbox.scene.spec import EventSpec
-from sandbox.solvers import SOLVERS
+from sandbox import EFFECTS, SOLVERS, EventSpec, SandboxError, Scene, resolve_scene, shipped_scenes
 
 from .debris import DEBRIS_MIXES, debris_bodies
 from .render import COLOR_MODES
@@ -146,9 +143,6 @@ class ControlPanel:
     def _load_scene(self, name: str, client) -> None:
         """Parse (and decompose) the scene in this worker thread; the simulation thread only
         builds the world from it, so the old world keeps running meanwhile."""
-        from sandbox import SandboxError, Scene
-        from sandbox.scene.library import resolve_scene
-
         note = None
         if client is not None:
             note = client.add_notification(f"Loading {name}", "reading the scene (mesh decompositions run once, "
