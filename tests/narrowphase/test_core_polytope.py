@@ -12,7 +12,7 @@ import pytest
 
 from sandbox.narrowphase.tolerances import FACE_PREFERENCE_ABS
 
-from .harness import capsule, core_polytope_distance, polytope, quat_axis_angle, quat_to_mat, random_quat, sphere
+from .harness import capsule, core_polytope_distance, polytope, quat_axis_angle, quat_to_matrix, random_quat, sphere
 
 POS_TOL = 2e-5
 """[m] f32 round-off of positions ~1 m from the origin after a rotation, with margin."""
@@ -65,7 +65,7 @@ def _random_cases():
         radius = rng.uniform(0.05, 0.2)
         half = 0.0 if i % 2 == 0 else rng.uniform(0.1, 0.4)
         rot_a = random_quat(rng)
-        axis = quat_to_mat(rot_a)[:, 2] * half
+        axis = quat_to_matrix(rot_a)[:, 2] * half
         u = rng.normal(size=3)
         u /= np.linalg.norm(u)
         target = rng.uniform(-0.02, 0.015)

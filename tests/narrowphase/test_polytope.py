@@ -13,7 +13,7 @@ import pytest
 from sandbox.narrowphase.tolerances import SAT_ABS_TOL, SAT_EDGE_REL_TOL
 
 from .harness import (POLYTOPES, place_touching, plane, polytope, polytope_distance, quat_axis_angle, quat_mul,
-                      quat_to_mat, random_quat)
+                      quat_to_matrix, random_quat)
 
 POS_TOL = 2e-5
 """[m] f32 round-off of positions up to ~2 m from the origin after one rotation (ulp 2.4e-7), with margin."""
@@ -37,7 +37,7 @@ TILT = quat_mul(quat_axis_angle([1, 0, 0], math.radians(10)), quat_axis_angle([0
 
 def _place_lowest_vertex(name, rot, target) -> tuple:
     """Position that puts the lowest vertex of the rotated polytope at ``target``."""
-    v = POLYTOPES[name].vertices @ quat_to_mat(rot).T
+    v = POLYTOPES[name].vertices @ quat_to_matrix(rot).T
     return tuple(np.asarray(target) - v[np.argmin(v[:, 2])])
 
 
@@ -211,7 +211,7 @@ def test_hull_on_plane_reduces_to_a_wide_quad(results):
 def test_rotated_hull_on_plane_finds_deepest_vertex(results):
     m = results["cases"]["rock_on_plane"]
     rock = CASES["rock_on_plane"][1]
-    z = (POLYTOPES["rock"].vertices @ quat_to_mat(rock.rot).T)[:, 2] + rock.pos[2]
+    z = (POLYTOPES["rock"].vertices @ quat_to_matrix(rock.rot).T)[:, 2] + rock.pos[2]
     assert m.count == min(4, int(np.sum(z < MARGIN)))
     assert abs(m.separation.min() - z.min()) < SEP_TOL
 
