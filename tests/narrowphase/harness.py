@@ -106,6 +106,17 @@ class Contact:
     feature: np.ndarray
 
 
+def assert_points(contact: Contact, expected_points, expected_seps, *, pos_tol: float, sep_tol: float) -> None:
+    """Compare a manifold's points and separations with the expected ones as sets (the order
+    is not part of the contract); each test file passes its own tolerances."""
+    assert contact.count == len(expected_points)
+    got = sorted(zip(contact.points.tolist(), contact.separation.tolist()))
+    want = sorted(zip([list(p) for p in expected_points], expected_seps))
+    for (gp, gs), (wp, ws) in zip(got, want):
+        np.testing.assert_allclose(gp, wp, atol=pos_tol)
+        assert abs(gs - ws) < sep_tol
+
+
 @ti.kernel
 def _collide_batch(pool: ti.template(), a: ti.template(), b: ti.template(), margin: ti.template(),
                    out: ti.template(), n: ti.i32):

@@ -5,6 +5,7 @@ feature ids, and random hull pairs against the brute-force numpy reference in
 ``harness.py``. Every case of the file goes into one kernel launch.
 """
 
+import functools
 import math
 
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 
 from sandbox.narrowphase.tolerances import SAT_ABS_TOL, SAT_EDGE_REL_TOL
 
+from .harness import assert_points as harness_assert_points
 from .harness import (POLYTOPES, place_touching, plane, polytope, polytope_distance, quat_axis_angle, quat_mul,
                       quat_to_matrix, random_quat)
 
@@ -135,14 +137,7 @@ def results(harness):
     }
 
 
-def assert_points(contact, expected_points, expected_seps):
-    """Compare points as sets (the order is not part of the contract)."""
-    assert contact.count == len(expected_points)
-    got = sorted(zip(contact.points.tolist(), contact.separation.tolist()))
-    want = sorted(zip([list(p) for p in expected_points], expected_seps))
-    for (gp, gs), (wp, ws) in zip(got, want):
-        np.testing.assert_allclose(gp, wp, atol=POS_TOL)
-        assert abs(gs - ws) < SEP_TOL
+assert_points = functools.partial(harness_assert_points, pos_tol=POS_TOL, sep_tol=SEP_TOL)
 
 
 def _cube_corners(centre, z):
