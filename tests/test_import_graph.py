@@ -49,6 +49,7 @@ class ImportGraph:
                 if parts[-1] == "__init__":
                     parts = parts[:-1]
                 self.files[".".join(parts)] = path
+        self.ours = {m.split(".")[0] for m in self.files}  # top-level names of the packages read
         self.edges: list[Edge] = []
         for module, path in self.files.items():
             self.edges += self._edges_of(module, path)
@@ -81,7 +82,7 @@ class ImportGraph:
 
     def _resolve(self, source: str, target: str, names: tuple, line: int) -> list[Edge]:
         """The edge to ``target`` and to each package on its way the importer is not inside."""
-        if target.split(".")[0] not in {m.split(".")[0] for m in self.files}:
+        if target.split(".")[0] not in self.ours:
             return [Edge(source, target.split(".")[0], line, names)]  # third party / stdlib
         edges = []
         parts = target.split(".")
