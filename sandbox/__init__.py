@@ -6,15 +6,35 @@ all in Taichi kernels.
     world.step(600)
     world.state()["position"]
 
-``World`` and ``SOLVERS`` are imported on first use, so the scene layer
-(``sandbox.scene``) stays usable without starting Taichi.
+These are the package's public names, the only ones ``web/`` uses (tests/test_import_graph.py
+checks it). ``World`` and ``SOLVERS`` are imported on first use, so the scene layer
+(``sandbox.scene``) stays usable without starting Taichi; everything else here is pure Python
+and numpy.
 """
 
+from .backend import init as init_backend
+from .backend import resolve_arch
 from .errors import CapacityError, SandboxError, SceneError, SimulationError
-from .scene.spec import Scene
+from .recording import Recorder
+from .scene import EFFECTS, BodySpec, EventSpec, Scene, ShapeSpec
+from .scene.generators import GeneratorError, Material, rain
+from .scene.library import resolve_scene, shipped_scenes
+from .scene.rotations import IDENTITY, quat_to_matrix
 from .settings import Settings
 
-__all__ = ["Scene", "World", "Settings", "SOLVERS", "SandboxError", "SceneError", "SimulationError", "CapacityError"]
+__all__ = [
+    # simulation
+    "Scene", "World", "Settings", "SOLVERS", "Recorder",
+    # errors
+    "SandboxError", "SceneError", "SimulationError", "CapacityError",
+    # the Taichi backend
+    "init_backend", "resolve_arch",
+    # scenes: the shipped library, the pieces a scene (or an edit of a running world) is made of
+    "resolve_scene", "shipped_scenes", "BodySpec", "ShapeSpec", "EventSpec", "EFFECTS",
+    "rain", "Material", "GeneratorError",
+    # host-side rotations
+    "IDENTITY", "quat_to_matrix",
+]
 
 
 def __getattr__(name):

@@ -18,6 +18,7 @@ from .broadphase import build_static_grid, compute_all_aabbs
 from .buffers import BufferSet, Capacities
 from .manifold_cache import clear_cache
 from .persistence import clear_history
+from .scene.rotations import quat_to_matrix
 from .scene.spec import Scene
 from .settings import Settings
 from .shapes import (
@@ -62,13 +63,7 @@ class HostWorld:
         )
 
 
-def _quat_mat(q) -> np.ndarray:
-    w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
+_quat_mat = quat_to_matrix  # the name world.py imports; use quat_to_matrix in new code
 
 
 def host_world(scene: Scene, settings: Settings) -> HostWorld:
@@ -198,8 +193,8 @@ def _static_aabbs(host: HostWorld, margin: float):
     hi = np.zeros((len(a["kind"]), 3))
     for i in host.static_ids:
         b = a["body"][i]
-        r = _quat_mat(host.body_arrays["rot"][b]) @ _quat_mat(a["local_rot"][i])
-        c = host.body_arrays["pos"][b] + _quat_mat(host.body_arrays["rot"][b]) @ a["local_pos"][i] + r @ a["aabb_center"][i]
+        r = quat_to_matrix(host.body_arrays["rot"][b]) @ quat_to_matrix(a["local_rot"][i])
+        c = host.body_arrays["pos"][b] + quat_to_matrix(host.body_arrays["rot"][b]) @ a["local_pos"][i] + r @ a["aabb_center"][i]
         e = np.abs(r) @ a["aabb_half"][i] + margin
         lo[i], hi[i] = c - e, c + e
     return lo, hi

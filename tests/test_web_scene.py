@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sandbox import SandboxError, Scene
-from sandbox.scene.spec import BodySpec, PlaneSpec, ShapeSpec
+from sandbox.scene import BodySpec, PlaneSpec, ShapeSpec
 from web.debris import DEBRIS_MIXES, debris_bodies
 from web.render import camera_for
 from web.shapes import body_shape, shape_mesh, static_meshes

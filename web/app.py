@@ -17,8 +17,7 @@ import threading
 import time
 from pathlib import Path
 
-from sandbox import SandboxError
-from sandbox.scene.library import resolve_scene
+from sandbox import SandboxError, resolve_arch, resolve_scene
 
 from .panel import ControlPanel
 from .render import WorldView, camera_for, configure_lighting
@@ -60,13 +59,11 @@ class SandboxApp:
     def __init__(self, scene: str | None = None, *, host: str = "127.0.0.1", port: int = 8080, arch: str = "cpu",
                  solver: str | None = "mass-splitting", iterations: int | None = 15,
                  recordings_dir: Path = Path("recordings"), log=print):
-        from sandbox import backend
-
         self.log = log
         check_port_free(host, port)
         if scene is not None:
             resolve_scene(scene)  # a wrong name fails before Taichi starts
-        self.arch = backend.resolve_arch(arch)  # Taichi itself starts in the simulation thread
+        self.arch = resolve_arch(arch)  # Taichi itself starts in the simulation thread
         self.scene_path = resolve_scene(scene or default_scene(self.arch))
         self.sim = Simulation(self.scene_path, arch=self.arch, solver=solver, iterations=iterations, log=log)
         self.host, self.requested_port = host, (port or free_port(host))

@@ -6,7 +6,7 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    from sandbox.solvers import SOLVERS
+    from sandbox import SOLVERS
 
     serve = sub.add_parser("serve", help="the web sandbox: a live world in the browser",
                            description="Start the web sandbox and print its URL. Without SCENE: a scene sized "

@@ -5,8 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sandbox.errors import SandboxError
-from sandbox.scene.generators import GeneratorError, Material, rain
+from sandbox import GeneratorError, Material, SandboxError, rain
 
 DEBRIS_MIXES = ("mixed", "boxes", "spheres", "hulls", "capsules")
 _SHAPES = {

@@ -16,10 +16,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from sandbox.scene.library import shipped_scenes
-from sandbox.scene.loader import EFFECTS
-from sandbox.scene.spec import EventSpec
-from sandbox.solvers import SOLVERS
+from sandbox import EFFECTS, SOLVERS, EventSpec, SandboxError, Scene, resolve_scene, shipped_scenes
 
 from .debris import DEBRIS_MIXES, debris_bodies
 from .render import COLOR_MODES
@@ -69,7 +66,8 @@ class ControlPanel:
         with gui.add_folder("Solver"):
             self.solver = gui.add_dropdown("Solver", list(SOLVERS), initial_value=snap.solver)
             self.solver.on_update(self._on_solver)
-            self.shuffle = gui.add_checkbox("Shuffle order (pgs-colored)", False,
+            shufflers = ", ".join(n for n, info in SOLVERS.items() if "shuffle" in info.defaults)
+            self.shuffle = gui.add_checkbox(f"Shuffle order ({shufflers})", False,
                                             hint="Permute contacts and colours every step, as parallel hardware does")
             self.shuffle.on_update(self._on_solver)
             self.iterations = gui.add_slider("Iterations", 1, MAX_ITERATIONS, 1, int(min(snap.iterations, MAX_ITERATIONS)))
@@ -146,9 +144,6 @@ class ControlPanel:
     def _load_scene(self, name: str, client) -> None:
         """Parse (and decompose) the scene in this worker thread; the simulation thread only
         builds the world from it, so the old world keeps running meanwhile."""
-        from sandbox import SandboxError, Scene
-        from sandbox.scene.library import resolve_scene
-
         note = None
         if client is not None:
             note = client.add_notification(f"Loading {name}", "reading the scene (mesh decompositions run once, "
@@ -190,7 +185,7 @@ class ControlPanel:
     @_user_action
     def _on_solver(self, event) -> None:
         name = self.solver.value
-        options = {"shuffle": True} if name == "pgs-colored" and self.shuffle.value else {}
+        options = {"shuffle": True} if "shuffle" in SOLVERS[name].defaults and self.shuffle.value else {}
         iterations = int(self.iterations.value)
         ev = EventSpec(time=0.0, kind="solver", solver=name, iterations=iterations, options=options)
         self.sim.submit(f"solver {name} ({iterations} iterations{', shuffled' if options else ''})",

@@ -13,8 +13,7 @@ from typing import NamedTuple
 import numpy as np
 import trimesh
 
-from sandbox.scene.rotations import IDENTITY, quat_to_matrix
-from sandbox.scene.spec import BodySpec, ShapeSpec
+from sandbox import IDENTITY, BodySpec, ShapeSpec, quat_to_matrix
 
 
 class RenderMesh(NamedTuple):

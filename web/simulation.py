@@ -22,8 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sandbox import SandboxError, Scene, SimulationError
-from sandbox.scene.spec import EventSpec
+from sandbox import EventSpec, Recorder, SandboxError, Scene, SimulationError, init_backend
 
 HISTORY = 600  # published frames kept for the live plots
 PUBLISH_HZ = 30.0  # snapshots per second while playing: the renderer draws at most this many
@@ -177,8 +176,6 @@ class Simulation:
         self._single_steps += 1
 
     def start_recording(self) -> None:
-        from sandbox.recording import Recorder
-
         if self.recorder is None:
             self.recorder = Recorder(self.world, self.scene_path)
 
@@ -192,10 +189,8 @@ class Simulation:
 
     # ------------------------------------------------------------------ the thread
     def _main(self) -> None:
-        from sandbox import backend
-
         try:
-            backend.init(self.arch)  # Taichi belongs to the thread that starts it: this one
+            init_backend(self.arch)  # Taichi belongs to the thread that starts it: this one
             self.load()
         except BaseException as exc:  # reported to the starting thread, which raises it
             self.startup_error = exc

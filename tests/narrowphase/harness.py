@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sandbox.scene.rotations import quat_mul  # noqa: F401  (the tests import it from here)
+from sandbox.scene.rotations import quat_mul, quat_to_matrix  # noqa: F401  (the tests import them from here)
 import taichi as ti
 
 from sandbox.narrowphase import Manifold, ShapePose, collide
@@ -90,13 +90,6 @@ def quat_axis_angle(axis, angle) -> np.ndarray:
     return np.r_[math.cos(angle / 2), math.sin(angle / 2) * a]
 
 
-def quat_to_mat(q) -> np.ndarray:
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 def random_quat(rng) -> np.ndarray:
     q = rng.normal(size=4)
     return q / np.linalg.norm(q)
@@ -111,6 +104,17 @@ class Contact:
     points: np.ndarray
     separation: np.ndarray
     feature: np.ndarray
+
+
+def assert_points(contact: Contact, expected_points, expected_seps, *, pos_tol: float, sep_tol: float) -> None:
+    """Compare a manifold's points and separations with the expected ones as sets (the order
+    is not part of the contract); each test file passes its own tolerances."""
+    assert contact.count == len(expected_points)
+    got = sorted(zip(contact.points.tolist(), contact.separation.tolist()))
+    want = sorted(zip([list(p) for p in expected_points], expected_seps))
+    for (gp, gs), (wp, ws) in zip(got, want):
+        np.testing.assert_allclose(gp, wp, atol=pos_tol)
+        assert abs(gs - ws) < sep_tol
 
 
 @ti.kernel
@@ -184,7 +188,7 @@ class Harness:
 def world_polytope(name: str, pos, rot):
     """Vertices (V, 3), face normals (F, 3), face offsets (F,), edges (E, 2), loops of a placed polytope."""
     p = POLYTOPES[name]
-    r = quat_to_mat(np.asarray(rot) / np.linalg.norm(rot))
+    r = quat_to_matrix(np.asarray(rot) / np.linalg.norm(rot))
     v = p.vertices @ r.T + np.asarray(pos)
     n = p.face_normals @ r.T
     return v, n, np.einsum("ij,ij->i", n, v[[loop[0] for loop in p.face_loops]]), p.edges, p.face_loops
@@ -262,7 +266,7 @@ def polytope_distance(name_a, pos_a, rot_a, name_b, pos_b, rot_b):
 def place_touching(name_a, rot_a, name_b, rot_b, direction, iters: int = 40) -> np.ndarray:
     """Position of b (a at the origin) moved along ``direction`` until the two just touch."""
     u = np.asarray(direction, float) / np.linalg.norm(direction)
-    start = POLYTOPES[name_a].centroid @ quat_to_mat(rot_a).T - POLYTOPES[name_b].centroid @ quat_to_mat(rot_b).T
+    start = POLYTOPES[name_a].centroid @ quat_to_matrix(rot_a).T - POLYTOPES[name_b].centroid @ quat_to_matrix(rot_b).T
     lo, hi = 0.0, 10.0
     for _ in range(iters):
         mid = 0.5 * (lo + hi)

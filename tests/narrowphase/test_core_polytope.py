@@ -5,6 +5,7 @@ lying flat, the triangle rules, and random spheres and capsules near a hull
 against the brute-force numpy distance of ``harness.py``. One kernel launch.
 """
 
+import functools
 import math
 
 import numpy as np
@@ -12,7 +13,8 @@ import pytest
 
 from sandbox.narrowphase.tolerances import FACE_PREFERENCE_ABS
 
-from .harness import capsule, core_polytope_distance, polytope, quat_axis_angle, quat_to_mat, random_quat, sphere
+from .harness import assert_points as harness_assert_points
+from .harness import capsule, core_polytope_distance, polytope, quat_axis_angle, quat_to_matrix, random_quat, sphere
 
 POS_TOL = 2e-5
 """[m] f32 round-off of positions ~1 m from the origin after a rotation, with margin."""
@@ -65,7 +67,7 @@ def _random_cases():
         radius = rng.uniform(0.05, 0.2)
         half = 0.0 if i % 2 == 0 else rng.uniform(0.1, 0.4)
         rot_a = random_quat(rng)
-        axis = quat_to_mat(rot_a)[:, 2] * half
+        axis = quat_to_matrix(rot_a)[:, 2] * half
         u = rng.normal(size=3)
         u /= np.linalg.norm(u)
         target = rng.uniform(-0.02, 0.015)
@@ -92,13 +94,7 @@ def results(harness):
     return dict(zip(names, out)), list(zip(out[len(names):], [ref for _, _, ref in rnd]))
 
 
-def assert_points(contact, expected_points, expected_seps):
-    assert contact.count == len(expected_points)
-    got = sorted(zip(contact.points.tolist(), contact.separation.tolist()))
-    want = sorted(zip([list(p) for p in expected_points], expected_seps))
-    for (gp, gs), (wp, ws) in zip(got, want):
-        np.testing.assert_allclose(gp, wp, atol=POS_TOL)
-        assert abs(gs - ws) < SEP_TOL
+assert_points = functools.partial(harness_assert_points, pos_tol=POS_TOL, sep_tol=SEP_TOL)
 
 
 def test_sphere_on_box_face(results):

@@ -5,6 +5,7 @@ feature ids, and random hull pairs against the brute-force numpy reference in
 ``harness.py``. Every case of the file goes into one kernel launch.
 """
 
+import functools
 import math
 
 import numpy as np
@@ -12,8 +13,9 @@ import pytest
 
 from sandbox.narrowphase.tolerances import SAT_ABS_TOL, SAT_EDGE_REL_TOL
 
+from .harness import assert_points as harness_assert_points
 from .harness import (POLYTOPES, place_touching, plane, polytope, polytope_distance, quat_axis_angle, quat_mul,
-                      quat_to_mat, random_quat)
+                      quat_to_matrix, random_quat)
 
 POS_TOL = 2e-5
 """[m] f32 round-off of positions up to ~2 m from the origin after one rotation (ulp 2.4e-7), with margin."""
@@ -37,7 +39,7 @@ TILT = quat_mul(quat_axis_angle([1, 0, 0], math.radians(10)), quat_axis_angle([0
 
 def _place_lowest_vertex(name, rot, target) -> tuple:
     """Position that puts the lowest vertex of the rotated polytope at ``target``."""
-    v = POLYTOPES[name].vertices @ quat_to_mat(rot).T
+    v = POLYTOPES[name].vertices @ quat_to_matrix(rot).T
     return tuple(np.asarray(target) - v[np.argmin(v[:, 2])])
 
 
@@ -135,14 +137,7 @@ def results(harness):
     }
 
 
-def assert_points(contact, expected_points, expected_seps):
-    """Compare points as sets (the order is not part of the contract)."""
-    assert contact.count == len(expected_points)
-    got = sorted(zip(contact.points.tolist(), contact.separation.tolist()))
-    want = sorted(zip([list(p) for p in expected_points], expected_seps))
-    for (gp, gs), (wp, ws) in zip(got, want):
-        np.testing.assert_allclose(gp, wp, atol=POS_TOL)
-        assert abs(gs - ws) < SEP_TOL
+assert_points = functools.partial(harness_assert_points, pos_tol=POS_TOL, sep_tol=SEP_TOL)
 
 
 def _cube_corners(centre, z):
@@ -211,7 +206,7 @@ def test_hull_on_plane_reduces_to_a_wide_quad(results):
 def test_rotated_hull_on_plane_finds_deepest_vertex(results):
     m = results["cases"]["rock_on_plane"]
     rock = CASES["rock_on_plane"][1]
-    z = (POLYTOPES["rock"].vertices @ quat_to_mat(rock.rot).T)[:, 2] + rock.pos[2]
+    z = (POLYTOPES["rock"].vertices @ quat_to_matrix(rock.rot).T)[:, 2] + rock.pos[2]
     assert m.count == min(4, int(np.sum(z < MARGIN)))
     assert abs(m.separation.min() - z.min()) < SEP_TOL
 

@@ -4,11 +4,13 @@ All cases of this file run in one kernel launch (``manifolds`` fixture); each
 test checks its own slice.
 """
 
+import functools
 import math
 
 import numpy as np
 import pytest
 
+from .harness import assert_points as harness_assert_points
 from .harness import capsule, plane, quat_axis_angle, sphere
 
 POS_TOL = 1e-5
@@ -56,14 +58,7 @@ def manifolds(harness):
     return dict(zip(names, harness.run([CASES[n] for n in names], margin=MARGIN)))
 
 
-def assert_points(contact, expected_points, expected_seps):
-    """Compare points as sets (the order is not part of the contract)."""
-    assert contact.count == len(expected_points)
-    got = sorted(zip(contact.points.tolist(), contact.separation.tolist()))
-    want = sorted(zip([list(p) for p in expected_points], expected_seps))
-    for (gp, gs), (wp, ws) in zip(got, want):
-        np.testing.assert_allclose(gp, wp, atol=POS_TOL)
-        assert abs(gs - ws) < SEP_TOL
+assert_points = functools.partial(harness_assert_points, pos_tol=POS_TOL, sep_tol=SEP_TOL)
 
 
 def test_plane_sphere_one_point_midway(manifolds):
