@@ -30,7 +30,7 @@ WRAPPED = {
     "sandbox.bodies": ["update_world_inertia", "save_good_state"],
     "sandbox.integrate": ["check_velocities"],
     "sandbox.solvers.rows": ["prepare_rows", "prepare_response"],
-    "sandbox.solvers.blocks": ["build_adjacency"],
+    "sandbox.solvers.mass_splitting": ["build_adjacency"],
     "sandbox.solvers.substep": ["iterate_in_order", "iterate_shared"],
 }
 

@@ -16,10 +16,8 @@ from .backend import init as init_backend
 from .backend import resolve_arch
 from .errors import CapacityError, SandboxError, SceneError, SimulationError
 from .recording import Recorder
-from .scene import EFFECTS, BodySpec, EventSpec, Scene, ShapeSpec
-from .scene.generators import GeneratorError, Material, rain
-from .scene.library import resolve_scene, shipped_scenes
-from .scene.rotations import IDENTITY, quat_to_matrix
+from .scene import (EFFECTS, IDENTITY, BodySpec, EventSpec, GeneratorError, Material, Scene, ShapeSpec, quat_to_matrix,
+                    rain, resolve_scene, shipped_scenes)
 from .settings import Settings
 
 __all__ = [

@@ -63,9 +63,6 @@ class HostWorld:
         )
 
 
-_quat_mat = quat_to_matrix  # the name world.py imports; use quat_to_matrix in new code
-
-
 def host_world(scene: Scene, settings: Settings) -> HostWorld:
     n_scene = len(scene.bodies)
     n_bodies = n_scene + 1  # + the static carrier of planes and meshes

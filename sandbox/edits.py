@@ -26,9 +26,10 @@ import dataclasses
 import numpy as np
 
 from . import buffers
-from .build import _quat_mat, host_world, upload
+from .build import host_world, upload
 from .errors import CapacityError, SandboxError
 from .fracture import FractureError, check_arguments, fracture_body, piece_count
+from .scene import quat_to_matrix
 from .scene.spec import EventSpec, Scene
 from .settings import Settings
 from .shapes import HULL
@@ -209,7 +210,7 @@ class Edits:
         for i in idx:
             v[i] += inv_m[i] * j
             if point is not None:
-                r = _quat_mat(rot[i].astype(np.float64))
+                r = quat_to_matrix(rot[i].astype(np.float64))
                 arm = finite_vector(point, "point") - pos[i]
                 w[i] += (r @ inv_i[i] @ r.T) @ np.cross(arm, j)
         b.lin_vel.from_numpy(v)

@@ -161,7 +161,7 @@ def replay(path, arch: str = "cpu", on_frame=None) -> dict:
 
     Returns {"frames", "first_departure" (None when identical), "max_difference"}.
     ``on_frame(step, world)`` is called after each re-simulated frame (for viewers)."""
-    from . import World
+    from .world import World
     from .scene.loader import scene_from_dict
     from .settings import Settings
 
