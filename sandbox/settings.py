@@ -109,6 +109,21 @@ class Settings:
     per-pair margin and slop caps (a quarter and a tenth of the smaller shape) still
     handle, but every piece is one more body for the solver."""
 
+    sleep_linear_speed: float = 0.05
+    """[m/s] With the ``sleeping`` effect, a body counts as resting while its speed stays below
+    this (and its angular speed below ``sleep_angular_speed``); an island whose bodies all rest
+    for ``sleep_time`` goes to sleep (sleep.py). Box2D uses 0.05 m/s. Higher puts piles to sleep
+    sooner but can freeze a slow slide or topple; lower keeps jittering bodies awake longer."""
+
+    sleep_angular_speed: float = math.radians(2.0)
+    """[rad/s] The angular speed below which a body counts as resting (2 deg/s, Box2D's value).
+    A slowly tipping tall body turns at about this rate just before it falls, so much higher
+    values would freeze topples."""
+
+    sleep_time: float = 0.5
+    """[s] How long every body of an island must rest before the island sleeps (Box2D: 0.5 s).
+    Shorter sleeps sooner; too short catches bodies at the top of a bounce or a swing."""
+
     max_bodies: int = 1_000_000
     """[1] Most bodies a world may hold. Adding bodies or fracturing past it raises
     CapacityError naming this setting. Below it, buffers grow in powers of two as bodies
@@ -120,6 +135,13 @@ class Settings:
 
             raise SandboxError(f"unknown iteration_launch {self.iteration_launch!r}; choose one of "
                                f"{', '.join(ITERATION_LAUNCHES)}")
+        for name in ("sleep_linear_speed", "sleep_angular_speed", "sleep_time"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value)
+                                                                                     and value >= 0.0):
+                from .errors import SandboxError
+
+                raise SandboxError(f"{name} must be a finite number >= 0, got {value!r}")
         for name, top in (("manifold_reuse_distance", math.inf), ("manifold_reuse_angle", math.pi)):
             value = getattr(self, name)
             if not (math.isfinite(value) and 0.0 <= value <= top):

@@ -106,15 +106,16 @@ def _assert_disjoint(bodies, tol=1e-9):
 
 # ---------------------------------------------------------------------------- effects and duration
 def test_effects_default_both_and_sorted_subsets():
-    assert EFFECTS == ("friction", "restitution")
-    assert _load({}).effects == ("friction", "restitution")
+    assert EFFECTS == ("friction", "restitution", "sleeping")
+    assert _load({}).effects == ("friction", "restitution")  # sleeping is asked for, never assumed
+    assert _load({"effects": ["sleeping", "friction"]}).effects == ("friction", "sleeping")
     assert _load({"effects": ["restitution", "friction"]}).effects == ("friction", "restitution")
     assert _load({"effects": ["friction"]}).effects == ("friction",)
     assert _load({"effects": []}).effects == ()  # frictionless, perfectly inelastic
 
 
 @pytest.mark.parametrize("value,entry,fragment", [
-    (["friction", "rolling"], "effects[1]", "unknown effect 'rolling'; expected one of: friction, restitution"),
+    (["friction", "rolling"], "effects[1]", "unknown effect 'rolling'; expected one of: friction, restitution, sleeping"),
     (["friction", "friction"], "effects[1]", "listed twice"),
     ("friction", "effects", "expected a list"),
     ([1], "effects[0]", "expected a string"),
@@ -253,8 +254,8 @@ BAD_EVENTS = [
     ("nan-gravity", [{"time": 1.0, "kind": "gravity", "gravity": [0.0, math.nan, -9.81]}], {}, "event[0].gravity",
      "finite"),
     ("short-gravity", [{"time": 1.0, "kind": "gravity", "gravity": [0.0, -9.81]}], {}, "event[0].gravity", "3"),
-    ("unknown-effect", [{"time": 1.0, "kind": "effects", "effects": ["friction", "sleeping"]}], {},
-     "event[0].effects[1]", "sleeping"),
+    ("unknown-effect", [{"time": 1.0, "kind": "effects", "effects": ["friction", "levitation"]}], {},
+     "event[0].effects[1]", "levitation"),
     ("missing-kind", [{"time": 1.0}], {}, "event[0].kind", "missing required key 'kind'"),
     ("unknown-key", [{"time": 1.0, "kind": "remove", "bodies": ["a"], "force": 3}], {}, "event[0].force",
      "unknown key 'force' for a 'remove' event; allowed keys: bodies, kind, time"),

@@ -16,8 +16,12 @@ SOLVER_OPTIONS = {name: tuple(info.defaults) for name, info in SOLVERS.items()}
 with its entry, not later in ``World``."""
 GENERATOR_KINDS = ("stack", "pyramid", "grid", "wall", "rain")
 EVENT_KINDS = timeline.EVENT_KINDS
-EFFECTS = ("friction", "restitution")
-"""Optional contact effects a scene may call for (``effects = [...]``); the engine compiles the others away."""
+EFFECTS = ("friction", "restitution", "sleeping")
+"""Optional effects a scene may call for (``effects = [...]``); the engine compiles the others away.
+``sleeping``: resting islands stop being simulated until something touches them (sleep.py)."""
+DEFAULT_EFFECTS = ("friction", "restitution")
+"""The effects of a scene without an ``effects`` line: sleeping is asked for, never assumed (it
+must not hide a solver's jitter in a comparison)."""
 PART_SHAPES = ("box", "sphere", "capsule", "hull")
 SOLID_SHAPES = PART_SHAPES + ("compound",)
 BODY_SHAPES = SOLID_SHAPES + ("mesh",)

@@ -50,8 +50,8 @@ from ..errors import SceneError
 from . import timeline
 from .body_reader import read_solid
 from .generator_reader import read_drop, read_generator
-from .keys import (EFFECTS, EVENT_KEYS, EVENT_KINDS, GENERATOR_KINDS, MAX_BODIES, SOLVER_NAMES, SOLVER_OPTIONS,
-                   STATIC_SHAPES, TOP_KEYS)
+from .keys import (DEFAULT_EFFECTS, EFFECTS, EVENT_KEYS, EVENT_KINDS, GENERATOR_KINDS, MAX_BODIES, SOLVER_NAMES,
+                   SOLVER_OPTIONS, STATIC_SHAPES, TOP_KEYS)
 from .mesh_reader import read_mesh, read_plane
 from .schema import Context, Reader
 from .spec import Scene
@@ -137,7 +137,7 @@ def _build(data, ctx: Context) -> Scene:
             scene.bodies.append(body)
     if len(scene.bodies) > MAX_BODIES:
         raise SceneError(f"scene has {len(scene.bodies)} bodies; at most {MAX_BODIES} are supported", source=ctx.source)
-    scene.effects = top.string_set("effects", EFFECTS, what="effect") if top.has("effects") else EFFECTS
+    scene.effects = top.string_set("effects", EFFECTS, what="effect") if top.has("effects") else DEFAULT_EFFECTS
     scene.events = timeline.read_events(
         top.tables("event"),
         duration=scene.world.duration,

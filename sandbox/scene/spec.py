@@ -100,7 +100,7 @@ class EventSpec:
     iterations: int | None = None  # solver / iterations: the new iteration count
     options: dict = field(default_factory=dict)  # solver: its options
     gravity: np.ndarray | None = None  # gravity: the new gravity vector [m/s^2]
-    effects: tuple | None = None  # effects: the contact effects now on (a subset of keys.EFFECTS)
+    effects: tuple | None = None  # effects: the effects now on (a subset of keys.EFFECTS)
     dt: float | None = None  # timestep: the new step [s]
     substeps: int | None = None  # timestep: the new number of substeps
     pieces: int | None = None  # fracture: Voronoi pieces of a convex body
@@ -134,7 +134,7 @@ class Scene:
     planes: list[PlaneSpec] = field(default_factory=list)
     meshes: list[MeshSpec] = field(default_factory=list)
     events: list[EventSpec] = field(default_factory=list)  # sorted by time, stable
-    effects: tuple = ("friction", "restitution")  # what the scene calls for; others compile away
+    effects: tuple = ("friction", "restitution")  # what the scene calls for (keys.EFFECTS); others compile away
     description: str = ""
     warnings: list = field(default_factory=list)  # what the loader repaired or fell back on, one sentence each
 
