@@ -25,6 +25,7 @@ to the host every step.
 
 import taichi as ti
 
+from .awake import body_id, body_total
 from .backend import serialize_light_loops
 from .math3d import any_nonfinite3, quat_mul, quat_normalize, quat_rotate, quat_rotate_inv, two_sum
 
@@ -67,14 +68,15 @@ def apply_gravity(bodies: ti.template(), gravity: vec3, h: ti.f32, i: ti.i32):
 
 
 @ti.func
-def gravity_loop(bodies: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
-    for i in range(bodies.count[None] * active):  # active = 0: skipped, still a top-level loop
-        apply_gravity(bodies, gravity, h, i)
+def gravity_loop(bodies: ti.template(), awake: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
+    """``awake`` (awake.py): every body, or the awake ones of a sleeping world."""
+    for k in range(body_total(bodies, awake) * active):  # active = 0: skipped, still a top-level loop
+        apply_gravity(bodies, gravity, h, body_id(awake, k))
 
 
 @ti.kernel
-def integrate_velocities(bodies: ti.template(), gravity: vec3, h: ti.f32):
-    gravity_loop(bodies, gravity, h, 1)
+def integrate_velocities(bodies: ti.template(), awake: ti.template(), gravity: vec3, h: ti.f32):
+    gravity_loop(bodies, awake, gravity, h, 1)
 
 
 @ti.func
@@ -108,9 +110,11 @@ def rotate_free(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia: ti.te
 
 
 @ti.func
-def check_velocities_loops(bodies: ti.template(), err: ti.template()):
+def check_velocities_loops(bodies: ti.template(), err: ti.template(), awake: ti.template()):
+    n = body_total(bodies, awake)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for i in range(bodies.count[None]):
+    for k in range(n):
+        i = body_id(awake, k)
         if bodies.inv_mass[i] > 0.0:
             if any_nonfinite3(bodies.lin_vel[i]) or any_nonfinite3(bodies.ang_vel[i]):
                 ti.atomic_or(err.flags[None], ERR_VELOCITY)
@@ -118,8 +122,8 @@ def check_velocities_loops(bodies: ti.template(), err: ti.template()):
 
 
 @ti.kernel
-def check_velocities(bodies: ti.template(), err: ti.template()):
-    check_velocities_loops(bodies, err)
+def check_velocities(bodies: ti.template(), err: ti.template(), awake: ti.template()):
+    check_velocities_loops(bodies, err, awake)
 
 
 @ti.func
@@ -145,11 +149,11 @@ def advance_pose(bodies: ti.template(), h: ti.f32, err: ti.template(), i: ti.i32
 
 
 @ti.func
-def positions_loop(bodies: ti.template(), h: ti.f32, err: ti.template()):
-    for i in range(bodies.count[None]):
-        advance_pose(bodies, h, err, i)
+def positions_loop(bodies: ti.template(), awake: ti.template(), h: ti.f32, err: ti.template()):
+    for k in range(body_total(bodies, awake)):
+        advance_pose(bodies, h, err, body_id(awake, k))
 
 
 @ti.kernel
-def integrate_positions(bodies: ti.template(), h: ti.f32, err: ti.template()):
-    positions_loop(bodies, h, err)
+def integrate_positions(bodies: ti.template(), awake: ti.template(), h: ti.f32, err: ti.template()):
+    positions_loop(bodies, awake, h, err)

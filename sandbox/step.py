@@ -37,6 +37,7 @@ import numpy as np
 import taichi as ti
 
 from . import step_kernels
+from .awake import EVERY
 from .errors import CapacityError, SimulationError
 from .solvers.schedule import Loop, Schedule
 
@@ -74,6 +75,7 @@ class Stepper:
         from .solvers.rows import RESTITUTION, prepare_rows, soft_contact_coefficients
 
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
+        awake = EVERY  # every body (a sleeping world's awake set comes with the sleeping effect)
         k = c.iterations
         h_sub = h / k
         gravity = ti.math.vec3(*c.gravity)
@@ -103,7 +105,7 @@ class Stepper:
                              s.restitution_threshold)
                 match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
                 c.schedule.prepare(b, s, step_count)
-        loop = Loop(b, c.friction, s.warm_start > 0.0, watch, gravity, h_sub, k, s.sweeps)
+        loop = Loop(b, c.friction, s.warm_start > 0.0, watch, gravity, h_sub, k, s.sweeps, awake)
         staged = p.enabled or c.record_residuals  # a timer per stage, a residual read per sweep
         launch = "per-stage" if staged else c.schedule.launch(s, c.arch)
         if launch == "per-stage":
@@ -117,11 +119,11 @@ class Stepper:
             reduce_manifolds(b.impacts, b.contacts)
         with p.stage("relax"):
             if c.restitution and self.edits.host.has_restitution:
-                c.schedule.sweep(b, RESTITUTION, c.friction)
+                c.schedule.sweep(b, awake, RESTITUTION, c.friction)
             if fused:
-                step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, k)
+                step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, k, awake)
             else:
-                check_velocities(b.bodies, b.errors)
+                check_velocities(b.bodies, b.errors, awake)
                 store_contacts(b.history, b.contacts, b.rows, b.shapes, k)
         self._check_errors(b, step_count)
 
@@ -161,27 +163,27 @@ class Stepper:
         from .integrate import integrate_positions, integrate_velocities
         from .solvers.rows import BIASED, RELAX
 
-        b, p, k, sweeps = loop.buf, self.profiler, loop.iterations, loop.sweeps
+        b, p, k, sweeps, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.awake
         fold = schedule.folds_warm_start(loop.warm)
         for i in range(k):
             if i == 0 or not fold:
                 if loop.warm:
                     with p.stage("iterate"):
-                        schedule.warm_start(b, loop.gravity, loop.h)
+                        schedule.warm_start(b, awake, loop.gravity, loop.h)
                 else:
                     with p.stage("integrate_velocities"):
-                        integrate_velocities(b.bodies, loop.gravity, loop.h)
+                        integrate_velocities(b.bodies, awake, loop.gravity, loop.h)
             with p.stage("iterate"):
                 for _ in range(sweeps):
-                    schedule.sweep(b, BIASED, loop.friction)
+                    schedule.sweep(b, awake, BIASED, loop.friction)
                     if record_residuals:
                         self.residual_history.append(biased_residual_rms(b))
             with p.stage("integrate_positions"):
-                integrate_positions(b.bodies, loop.h, b.errors)
+                integrate_positions(b.bodies, awake, loop.h, b.errors)
             with p.stage("relax"):
                 for j in range(sweeps):
                     then_warm = int(fold and i < k - 1 and j == sweeps - 1)
-                    schedule.sweep(b, RELAX, loop.friction, then_warm, loop.gravity, loop.h)
+                    schedule.sweep(b, awake, RELAX, loop.friction, then_warm, loop.gravity, loop.h)
             if loop.watch:
                 accumulate_points(b.impacts, b.contacts, b.rows)
 

@@ -52,7 +52,7 @@ def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), h
 
 @ti.kernel
 def finish_step(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                shapes: ti.template(), err: ti.template(), substeps: ti.i32):
+                shapes: ti.template(), err: ti.template(), substeps: ti.i32, awake: ti.template()):
     """Velocity check and the contact store for the next step's warm start."""
-    check_velocities_loops(bodies, err)
+    check_velocities_loops(bodies, err, awake)
     store_contacts_loops(hist, c, rows, shapes, substeps)

@@ -34,6 +34,7 @@ multiplies the velocity change written to the slot:
 
 import taichi as ti
 
+from ..awake import body_id, body_total
 from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .rows import point_impulse, solve_point
@@ -149,11 +150,11 @@ def gather_body(s: ti.template(), bodies: ti.template(), dv_extra: vec3, i: ti.i
 
 
 @ti.func
-def gather_slots(s: ti.template(), bodies: ti.template(), dv_extra: vec3, active: ti.i32):
-    """``gather_body`` for every body; ``active`` = 0 runs the loop zero times (it stays a
-    top-level, parallel loop)."""
-    for i in range(bodies.count[None] * active):
-        gather_body(s, bodies, dv_extra, i)
+def gather_slots(s: ti.template(), bodies: ti.template(), awake: ti.template(), dv_extra: vec3, active: ti.i32):
+    """``gather_body`` for every body (``awake``: or the awake ones, awake.py); ``active`` = 0
+    runs the loop zero times (it stays a top-level, parallel loop)."""
+    for k in range(body_total(bodies, awake) * active):
+        gather_body(s, bodies, dv_extra, body_id(awake, k))
 
 
 @ti.func
@@ -200,14 +201,14 @@ def warm_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: 
 
 @ti.func
 def warm_start_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
-                      kind: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
+                      awake: ti.template(), kind: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
     """Gravity, then last step's matched impulses with the full masses (method.md 1.10):
     one loop over blocks into the slots, one fixed-order gather per body that adds
     ``gravity * h`` too. Two loops: at a kernel's top level each runs in parallel; inside
     a serialized loop (solvers/substep.py) both run in order. ``active`` = 0 skips it."""
     for k in range(s.block_count[None] * active):
         warm_block(s, rows, c, bodies, kind, k)
-    gather_slots(s, bodies, gravity * h, active)
+    gather_slots(s, bodies, awake, gravity * h, active)
 
 
 @ti.func
@@ -239,8 +240,9 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
 
 
 @ti.func
-def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-                 mode: ti.template(), friction: ti.template(), then_warm: ti.i32, gravity: vec3, h: ti.f32):
+def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
+                 kind: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, gravity: vec3,
+                 h: ti.f32):
     """One Jacobi sweep over all blocks from the same velocities, then the per-body merge.
 
     ``then_warm`` (the last relax sweep of a substep that has a successor): the block's
@@ -249,16 +251,17 @@ def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
     passes fewer per substep than a separate gravity pass and warm-start pass."""
     for k in range(s.block_count[None]):
         sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k)
-    gather_slots(s, bodies, gravity * h * ti.cast(then_warm, ti.f32), 1)
+    gather_slots(s, bodies, awake, gravity * h * ti.cast(then_warm, ti.f32), 1)
 
 
 @ti.kernel
-def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-               gravity: vec3, h: ti.f32):
-    warm_start_blocks(s, rows, c, bodies, kind, gravity, h, 1)
+def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
+               kind: ti.template(), gravity: vec3, h: ti.f32):
+    warm_start_blocks(s, rows, c, bodies, awake, kind, gravity, h, 1)
 
 
 @ti.kernel
-def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-                 mode: ti.template(), friction: ti.template(), then_warm: ti.i32, gravity: vec3, h: ti.f32):
-    sweep_blocks(s, rows, c, bodies, kind, mode, friction, then_warm, gravity, h)
+def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
+                 kind: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, gravity: vec3,
+                 h: ti.f32):
+    sweep_blocks(s, rows, c, bodies, awake, kind, mode, friction, then_warm, gravity, h)

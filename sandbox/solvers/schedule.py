@@ -40,6 +40,7 @@ class Loop:
     h: float  # substep [s]
     iterations: int  # substeps per step
     sweeps: int  # sweeps per substep (Settings.sweeps)
+    awake: object  # which bodies the body loops visit: awake.EVERY, or a sleeping world's awake lists
 
 
 class Schedule:
@@ -88,11 +89,11 @@ class Schedule:
         """Gravity and warm start of a later substep ride on the previous relax sweep."""
         return substep.folds_warm_start(self.visit, warm)
 
-    def warm_start(self, buf, gravity, h: float) -> None:
+    def warm_start(self, buf, awake, gravity, h: float) -> None:
         """Gravity, then last step's matched impulses with the full masses, as one launch."""
-        mass_splitting.warm_start(buf.blocks, buf.rows, buf.contacts, buf.bodies, self.kind, gravity, h)
+        mass_splitting.warm_start(buf.blocks, buf.rows, buf.contacts, buf.bodies, awake, self.kind, gravity, h)
 
-    def sweep(self, buf, mode: int, friction: bool, then_warm: int = 0, gravity=None, h: float = 0.0) -> None:
+    def sweep(self, buf, awake, mode: int, friction: bool, then_warm: int = 0, gravity=None, h: float = 0.0) -> None:
         """One pass over every contact row (``then_warm``: mass_splitting.sweep_blocks)."""
         rows, c, bodies = buf.rows, buf.contacts, buf.bodies
         if self.info.visit == "serial":
@@ -110,7 +111,7 @@ class Schedule:
                                    friction)
         else:
             g = gravity if gravity is not None else ti.math.vec3(0.0)
-            mass_splitting.jacobi_sweep(buf.blocks, rows, c, bodies, self.kind, mode, friction, then_warm, g, h)
+            mass_splitting.jacobi_sweep(buf.blocks, rows, c, bodies, awake, self.kind, mode, friction, then_warm, g, h)
 
     # ------------------------------------------------------------------ the fused iteration loop
     def launch(self, settings, arch: str) -> str:
@@ -149,4 +150,4 @@ class Schedule:
         """The arguments every iteration-loop kernel of substep.py starts with."""
         b = loop.buf
         return (b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors, self.kind, self.visit, loop.friction,
-                loop.warm, b.impacts, loop.watch, loop.gravity, loop.h)
+                loop.warm, b.impacts, loop.watch, loop.awake, loop.gravity, loop.h)

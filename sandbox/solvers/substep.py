@@ -33,6 +33,7 @@ for the profiler (one timer per stage) and for residual recording (a read per sw
 
 import taichi as ti
 
+from ..awake import body_id, body_total
 from ..impact import accumulate_points_loop, add_point_impulse
 from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loop
 from . import team as tm
@@ -48,25 +49,26 @@ PGS, PGS_COLORED, BLOCKS = 0, 1, 2
 
 @ti.func
 def _sweep(schedule: ti.template(), s: ti.template(), rows: ti.template(), c: ti.template(),
-           bodies: ti.template(), col: ti.template(), kind: ti.template(), mode: ti.template(),
+           bodies: ti.template(), awake: ti.template(), col: ti.template(), kind: ti.template(), mode: ti.template(),
            friction: ti.template(), then_warm: ti.i32, gravity: vec3, h: ti.f32):
     if ti.static(schedule == PGS):
         pgs_sweep(rows, c, bodies, mode, friction)
     elif ti.static(schedule == PGS_COLORED):
         colored_sweep_in_order(rows, c, bodies, col, mode, friction)
     else:
-        sweep_blocks(s, rows, c, bodies, kind, mode, friction, then_warm, gravity, h)
+        sweep_blocks(s, rows, c, bodies, awake, kind, mode, friction, then_warm, gravity, h)
 
 
 @ti.func
 def _start_substep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
-                   kind: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
+                   awake: ti.template(), kind: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32,
+                   active: ti.i32):
     """Gravity and warm start of a substep (``active`` = 0 skips both: the Jacobi family's
     later substeps get them from the previous relax sweep, mass_splitting.sweep_blocks)."""
     if ti.static(warm):
-        warm_start_blocks(s, rows, c, bodies, kind, gravity, h, active)
+        warm_start_blocks(s, rows, c, bodies, awake, kind, gravity, h, active)
     else:
-        gravity_loop(bodies, gravity, h, active)
+        gravity_loop(bodies, awake, gravity, h, active)
 
 
 def folds_warm_start(schedule: int, warm: bool) -> bool:
@@ -79,7 +81,7 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
 def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                      col: ti.template(), err: ti.template(), kind: ti.template(), schedule: ti.template(),
                      friction: ti.template(), warm: ti.template(), impacts: ti.template(), watch: ti.template(),
-                     gravity: vec3, h: ti.f32, iterations: ti.i32, sweeps: ti.i32):
+                     awake: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32, sweeps: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, everything in order on one thread.
     ``watch``: each substep's normal impulses are added to ``impacts`` (impact.py)."""
     fold = ti.static(folds_warm_start(schedule, warm))
@@ -88,15 +90,15 @@ def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bo
         first = 1
         if ti.static(fold):
             first = 1 if it == 0 else 0
-        _start_substep(s, rows, c, bodies, kind, warm, gravity, h, first)
+        _start_substep(s, rows, c, bodies, awake, kind, warm, gravity, h, first)
         for _sb in range(sweeps):
-            _sweep(schedule, s, rows, c, bodies, col, kind, BIASED, friction, 0, gravity, h)
-        positions_loop(bodies, h, err)
+            _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
+        positions_loop(bodies, awake, h, err)
         for sr in range(sweeps):
             then_warm = 0
             if ti.static(fold):
                 then_warm = 1 if it < iterations - 1 and sr == sweeps - 1 else 0
-            _sweep(schedule, s, rows, c, bodies, col, kind, RELAX, friction, then_warm, gravity, h)
+            _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
         if ti.static(watch):
             accumulate_points_loop(impacts, c, rows)
 
@@ -105,15 +107,15 @@ def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bo
 def substep_parallel(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                      col: ti.template(), err: ti.template(), kind: ti.template(), schedule: ti.template(),
                      friction: ti.template(), warm: ti.template(), impacts: ti.template(), watch: ti.template(),
-                     gravity: vec3, h: ti.f32, first: ti.i32, then_warm: ti.i32):
+                     awake: ti.template(), gravity: vec3, h: ti.f32, first: ti.i32, then_warm: ti.i32):
     """One substep of ``h`` with one sweep each, every phase's loops parallel, in one launch.
     ``first``: this substep does its own gravity and warm start; ``then_warm``: its relax
     sweep does the next one's (both 1 / 0 decided by ``Schedule.iterate`` with ``folds_warm_start``)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
-    _start_substep(s, rows, c, bodies, kind, warm, gravity, h, first)
-    _sweep(schedule, s, rows, c, bodies, col, kind, BIASED, friction, 0, gravity, h)
-    positions_loop(bodies, h, err)
-    _sweep(schedule, s, rows, c, bodies, col, kind, RELAX, friction, then_warm, gravity, h)
+    _start_substep(s, rows, c, bodies, awake, kind, warm, gravity, h, first)
+    _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
+    positions_loop(bodies, awake, h, err)
+    _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
     if ti.static(watch):
         accumulate_points_loop(impacts, c, rows)
 
@@ -152,12 +154,13 @@ advance its pose, or add its slots and then advance its pose."""
 
 @ti.func
 def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
-                bodies: ti.template(), err: ti.template(), what: ti.template(), dv_extra: vec3, gravity: vec3,
-                h: ti.f32) -> ti.i32:
-    n = bodies.count[None]
+                bodies: ti.template(), awake: ti.template(), err: ti.template(), what: ti.template(), dv_extra: vec3,
+                gravity: vec3, h: ti.f32) -> ti.i32:
+    n = body_total(bodies, awake)
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
     while lo < hi:
-        for i in range(lo, hi):
+        for k in range(lo, hi):
+            i = body_id(awake, k)
             if ti.static(what == GATHER or what == GATHER_POSE):
                 gather_body(s, bodies, dv_extra, i)
             if ti.static(what == GRAVITY):
@@ -198,22 +201,23 @@ def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
 
 @ti.func
 def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
-                  rows: ti.template(), c: ti.template(), bodies: ti.template(), col: ti.template(),
-                  err: ti.template(), kind: ti.template(), schedule: ti.template(), mode: ti.template(),
-                  friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3, h: ti.f32) -> ti.i32:
+                  rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
+                  col: ti.template(), err: ti.template(), kind: ti.template(), schedule: ti.template(),
+                  mode: ti.template(), friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3,
+                  h: ti.f32) -> ti.i32:
     """One sweep; ``pose_after``: the bodies' poses advance right after it (the biased
     solve's last sweep), fused into the Jacobi family's gather."""
     if ti.static(schedule == PGS_COLORED):
         p = _color_phases(team, p, member, members, rows, c, bodies, col, mode, friction)
         if pose_after:
-            p = _body_phase(team, p, member, members, s, bodies, err, POSE, vec3(0.0), gravity, h)
+            p = _body_phase(team, p, member, members, s, bodies, awake, err, POSE, vec3(0.0), gravity, h)
     else:
         p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, mode, friction, then_warm, False)
         dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
         if pose_after:
-            p = _body_phase(team, p, member, members, s, bodies, err, GATHER_POSE, dv_extra, gravity, h)
+            p = _body_phase(team, p, member, members, s, bodies, awake, err, GATHER_POSE, dv_extra, gravity, h)
         else:
-            p = _body_phase(team, p, member, members, s, bodies, err, GATHER, dv_extra, gravity, h)
+            p = _body_phase(team, p, member, members, s, bodies, awake, err, GATHER, dv_extra, gravity, h)
     return p
 
 
@@ -236,7 +240,8 @@ def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(),
                  c: ti.template(), bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                  schedule: ti.template(), friction: ti.template(), warm: ti.template(), impacts: ti.template(),
-                 watch: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32, sweeps: ti.i32):
+                 watch: ti.template(), awake: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
+                 sweeps: ti.i32):
     """What one thread runs: every phase of ``iterate_in_order``, in its order."""
     fold = ti.static(folds_warm_start(schedule, warm))
     p = 0
@@ -247,17 +252,17 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
         if first:
             if ti.static(warm):
                 p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, True)
-                p = _body_phase(team, p, member, members, s, bodies, err, GATHER, gravity * h, gravity, h)
+                p = _body_phase(team, p, member, members, s, bodies, awake, err, GATHER, gravity * h, gravity, h)
             else:
-                p = _body_phase(team, p, member, members, s, bodies, err, GRAVITY, vec3(0.0), gravity, h)
+                p = _body_phase(team, p, member, members, s, bodies, awake, err, GRAVITY, vec3(0.0), gravity, h)
         for sb in range(sweeps):
-            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, col, err, kind, schedule, BIASED,
+            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, col, err, kind, schedule, BIASED,
                               friction, 0, int(sb == sweeps - 1), gravity, h)
         for sr in range(sweeps):
             then_warm = 0
             if ti.static(fold):
                 then_warm = 1 if it < iterations - 1 and sr == sweeps - 1 else 0
-            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, col, err, kind, schedule, RELAX,
+            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, col, err, kind, schedule, RELAX,
                               friction, then_warm, 0, gravity, h)
         if ti.static(watch):
             p = _point_phase(team, p, member, members, c, rows, impacts)
@@ -267,12 +272,12 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
 def iterate_shared(team: ti.template(), s: ti.template(), rows: ti.template(), c: ti.template(),
                    bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                    schedule: ti.template(), friction: ti.template(), warm: ti.template(), impacts: ti.template(),
-                   watch: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32, sweeps: ti.i32, phases: ti.i32,
-                   members: ti.i32):
+                   watch: ti.template(), awake: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
+                   sweeps: ti.i32, phases: ti.i32, members: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, shared by ``members`` threads."""
     ti.static_assert(schedule != PGS, "serial PGS has nothing to share")
     tm.reset_loop(team, phases * members)
     for i in range(members * tm.TASK_ITEMS):
         if i % tm.TASK_ITEMS == 0:
             _team_member(team, i // tm.TASK_ITEMS, members, s, rows, c, bodies, col, err, kind, schedule, friction,
-                         warm, impacts, watch, gravity, h, iterations, sweeps)
+                         warm, impacts, watch, awake, gravity, h, iterations, sweeps)
