@@ -24,6 +24,7 @@ Static bodies have inverse mass and inverse inertia zero and are never moved.
 import numpy as np
 import taichi as ti
 
+from .awake import EVERY, body_id, body_total
 from .backend import serialize_light_loops
 from .math3d import quat_to_mat
 
@@ -69,8 +70,8 @@ class Bodies:
             full[:n] = value
             field.from_numpy(full.astype(np.float32))
         self.count[None] = n
-        update_world_inertia(self)
-        save_good_state(self)
+        update_world_inertia(self, EVERY)
+        save_good_state(self, EVERY)
 
     STATE_FIELDS = {"position": "pos", "orientation": "rot", "linear_velocity": "lin_vel",
                     "angular_velocity": "ang_vel"}
@@ -95,33 +96,48 @@ class Bodies:
 
 
 @ti.func
-def update_world_inertia_loops(b: ti.template()):
-    ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for i in range(b.count[None]):
-        r = quat_to_mat(b.rot[i])
-        b.inv_inertia_world[i] = r @ b.inv_inertia[i] @ r.transpose()
-
-
-@ti.kernel
-def update_world_inertia(b: ti.template()):
-    update_world_inertia_loops(b)
+def update_body_inertia(b: ti.template(), i: ti.i32):
+    r = quat_to_mat(b.rot[i])
+    b.inv_inertia_world[i] = r @ b.inv_inertia[i] @ r.transpose()
 
 
 @ti.func
-def save_good_state_loops(b: ti.template()):
+def update_world_inertia_loops(b: ti.template(), awake: ti.template()):
+    """``awake`` (awake.py): every body, or the awake ones (a sleeping body keeps the world
+    inertia of the pose it fell asleep in)."""
+    n = body_total(b, awake)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for i in range(b.count[None]):
-        b.good_pos[i] = b.pos[i]
-        b.good_pos_rem[i] = b.pos_rem[i]
-        b.moved[i] = vec3(0.0)
-        b.good_rot[i] = b.rot[i]
-        b.good_lin_vel[i] = b.lin_vel[i]
-        b.good_ang_vel[i] = b.ang_vel[i]
+    for k in range(n):
+        update_body_inertia(b, body_id(awake, k))
 
 
 @ti.kernel
-def save_good_state(b: ti.template()):
-    save_good_state_loops(b)
+def update_world_inertia(b: ti.template(), awake: ti.template()):
+    update_world_inertia_loops(b, awake)
+
+
+@ti.func
+def save_body_state(b: ti.template(), i: ti.i32):
+    b.good_pos[i] = b.pos[i]
+    b.good_pos_rem[i] = b.pos_rem[i]
+    b.moved[i] = vec3(0.0)
+    b.good_rot[i] = b.rot[i]
+    b.good_lin_vel[i] = b.lin_vel[i]
+    b.good_ang_vel[i] = b.ang_vel[i]
+
+
+@ti.func
+def save_good_state_loops(b: ti.template(), awake: ti.template()):
+    """A sleeping body's good state is the pose it fell asleep in (sleep.py saves it then)."""
+    n = body_total(b, awake)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(n):
+        save_body_state(b, body_id(awake, k))
+
+
+@ti.kernel
+def save_good_state(b: ti.template(), awake: ti.template()):
+    save_good_state_loops(b, awake)
 
 
 @ti.kernel

@@ -20,6 +20,7 @@ as partner ``-1 - plane_index``.
 import numpy as np
 import taichi as ti
 
+from .awake import shape_id, shape_total
 from .backend import serialize_light_loops
 from .integrate import ERR_BOUNDS
 from .math3d import quat_rotate, quat_to_mat
@@ -203,14 +204,16 @@ def _fits_grid(lo: vec3, hi: vec3, cell: ti.f32) -> ti.i32:
 
 @ti.func
 def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
-                             dt: ti.f32, err: ti.template()):
+                             dt: ti.f32, err: ti.template(), awake: ti.template()):
     """``dt`` [s] is the step: each AABB also covers where its shape can get to during the step
     (|v| dt + |w| r dt), so fast bodies find their partners and get speculative contacts
-    instead of tunnelling. Bounds too large for the grids raise ERR_BOUNDS (MAX_SPAN_CELLS)."""
-    n = shapes.dynamic_count[None]
+    instead of tunnelling. Bounds too large for the grids raise ERR_BOUNDS (MAX_SPAN_CELLS).
+    ``awake`` (awake.py): the grid holds every dynamic shape, or the listed ones (a sleeping
+    world's awake shapes; sleep.py builds the grid of its sleeping shapes with this too)."""
+    n = shape_total(shapes, awake)
     cell = bp.cell_size[None]
     for k in range(n):
-        i = shapes.dynamic_ids[k]
+        i = shape_id(shapes, awake, k)
         lo, hi = shape_world_aabb(shapes, bodies, i, margin + swept_distance(shapes, bodies, i, dt))
         if not _fits_grid(lo, hi, cell):
             ti.atomic_or(err.flags[None], ERR_BOUNDS)
@@ -231,7 +234,7 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
     mask = bp.hash_size - 1
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):
-        i = shapes.dynamic_ids[k]
+        i = shape_id(shapes, awake, k)
         a, b = _cell_range(bp.aabb_min[i], bp.aabb_max[i], cell)
         e = bp.entry_start[k]
         for x in range(a[0], b[0] + 1):
@@ -264,8 +267,8 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
 
 @ti.kernel
 def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
-                       dt: ti.f32, err: ti.template()):
-    build_dynamic_grid_loops(bp, shapes, bodies, margin, dt, err)
+                       dt: ti.f32, err: ti.template(), awake: ti.template()):
+    build_dynamic_grid_loops(bp, shapes, bodies, margin, dt, err, awake)
 
 
 @ti.func
@@ -339,11 +342,43 @@ def _visit_grid(bp: ti.template(), shapes: ti.template(), i: ti.i32, cell: ti.f3
 
 
 @ti.func
-def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i32, write: ti.template()) -> ti.i32:
-    i = shapes.dynamic_ids[k]
+def _visit_sleepers(bp: ti.template(), grid: ti.template(), i: ti.i32, base: ti.i32, found: ti.i32,
+                    write: ti.template()) -> ti.i32:
+    """Sleeping partners of awake shape i, from the grid of a sleeping world's sleeping shapes
+    (sleep.py builds it with this module's grid code, the same cell size): every overlapping
+    one, each once (in the cell holding the intersection's minimum corner). Skipped at the
+    cost of one read while nothing sleeps."""
+    count = found
+    if grid.bucket_total[None] > 0:
+        lo, hi = bp.aabb_min[i], bp.aabb_max[i]
+        a, b = _cell_range(lo, hi, bp.cell_size[None])
+        mask = grid.hash_size - 1
+        for x in range(a[0], b[0] + 1):
+            for y in range(a[1], b[1] + 1):
+                for z in range(a[2], b[2] + 1):
+                    c = ivec3(x, y, z)
+                    h = cell_hash(c, mask)
+                    e0 = grid.bucket_start[h]
+                    for e in range(e0, grid.bucket_start[h + 1]):
+                        j = grid.sorted_shape[e]
+                        # a bucket is sorted by shape id: two cells of one shape sit side by side
+                        if e == e0 or grid.sorted_shape[e - 1] != j:
+                            if (lo <= grid.sorted_hi[e]).all() and (grid.sorted_lo[e] <= hi).all():
+                                if (ti.max(a, grid.sorted_cell_lo[e]) == c).all():
+                                    _emit(bp, i, j, base, count, write)
+                                    count += 1
+    return count
+
+
+@ti.func
+def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i32, write: ti.template(),
+                 awake: ti.template()) -> ti.i32:
+    i = shape_id(shapes, awake, k)
     lo, hi = bp.aabb_min[i], bp.aabb_max[i]
     found = _visit_grid(bp, shapes, i, bp.cell_size[None], bp.hash_size - 1, bp.bucket_start, bp.sorted_shape, True,
                         base, 0, write)
+    if ti.static(awake.compact):  # a sleeping world: its sleeping shapes, which only awake ones can wake
+        found = _visit_sleepers(bp, awake.grid, i, base, found, write)
     if bp.static_bucket_start[bp.static_hash_size] > 0:  # a static grid with entries (not just planes)
         found = _visit_grid(bp, shapes, i, bp.static_cell_size[None], bp.static_hash_size - 1,
                             bp.static_bucket_start, bp.static_entries, False, base, found, write)
@@ -360,10 +395,11 @@ def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i
 
 
 @ti.func
-def find_pairs_loops(bp: ti.template(), shapes: ti.template()):
+def find_pairs_loops(bp: ti.template(), shapes: ti.template(), awake: ti.template()):
     """Count pass (which keeps the first PAIRS_PER_SHAPE partners of each shape in its
-    scratch row), scan, then copy; only a shape with more partners is enumerated again."""
-    n = shapes.dynamic_count[None]
+    scratch row), scan, then copy; only a shape with more partners is enumerated again.
+    ``awake``: the shapes of the grid (``build_dynamic_grid_loops``) enumerate the pairs."""
+    n = shape_total(shapes, awake)
     # a shape checks only partners of higher id, so low ids carry most of the work, and
     # Taichi's CPU loop hands each thread one contiguous block of the range: visit the
     # shapes interleaved (t -> k), so every block holds low and high ids alike
@@ -371,21 +407,21 @@ def find_pairs_loops(bp: ti.template(), shapes: ti.template()):
     for t in range(rows * PAIR_SEARCH_STRIDE):
         k = (t % PAIR_SEARCH_STRIDE) * rows + t // PAIR_SEARCH_STRIDE
         if k < n:
-            bp.pair_count[k] = _visit_pairs(bp, shapes, k, k * PAIRS_PER_SHAPE, SCRATCH)
+            bp.pair_count[k] = _visit_pairs(bp, shapes, k, k * PAIRS_PER_SHAPE, SCRATCH, awake)
     exclusive_scan(bp.scanner, bp.pair_count, bp.pair_start, n, bp.pair_total)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):
         cnt = bp.pair_count[k]
         base = bp.pair_start[k]
         if cnt <= PAIRS_PER_SHAPE:
-            i = shapes.dynamic_ids[k]
+            i = shape_id(shapes, awake, k)
             for e in range(ti.min(cnt, bp.pair_capacity - base)):
                 bp.pair_a[base + e] = i
                 bp.pair_b[base + e] = bp.scratch_b[k * PAIRS_PER_SHAPE + e]
         else:
-            _visit_pairs(bp, shapes, k, base, WRITE)
+            _visit_pairs(bp, shapes, k, base, WRITE, awake)
 
 
 @ti.kernel
-def find_pairs(bp: ti.template(), shapes: ti.template()):
-    find_pairs_loops(bp, shapes)
+def find_pairs(bp: ti.template(), shapes: ti.template(), awake: ti.template()):
+    find_pairs_loops(bp, shapes, awake)

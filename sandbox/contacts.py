@@ -14,6 +14,7 @@ their order is that of the pair list: deterministic, with no atomics.
 
 import taichi as ti
 
+from .awake import note_touch, shape_id, shape_total
 from .backend import serialize_light_loops
 from .math3d import quat_mul, quat_rotate
 from .narrowphase import collide_kinds
@@ -128,7 +129,7 @@ def partner_material(shapes: ti.template(), partner: ti.i32):
 @ti.func
 def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
                         pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
-                        reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template()):
+                        reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(), awake: ti.template()):
     """Narrowphase over every candidate pair, then pack the points and manifolds.
 
     The pair's margin is the speculative distance (capped at a quarter of the smaller
@@ -139,7 +140,9 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
     kinds the scene contains, a static tuple) keeps routines for absent kinds out of
     the compiled kernel (house rule 8). A pair whose relative pose moved less than
     ``reuse_d2`` (squared distance) and whose relative rotation's half-angle sine stays
-    below ``reuse_sin`` takes last step's manifold back (manifold_cache.py)."""
+    below ``reuse_sin`` takes last step's manifold back (manifold_cache.py). ``awake``
+    (awake.py): the shapes that enumerated the pairs (``broadphase.find_pairs_loops``); in a
+    sleeping world a pair with points whose partner sleeps marks that island to wake."""
     n_pairs = ti.min(bp.pair_total[None], bp.pair_capacity)
     start_step(cache)
     for p in range(n_pairs):
@@ -164,6 +167,9 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
         else:
             m = collide_kinds(pool, a, b, pair_margin, kinds)
             remember_manifold(cache, p, j, m, a, b)
+        if ti.static(awake.compact):  # a sleeping world: touching a sleeping body wakes its island
+            if m.count > 0 and j >= 0:
+                note_touch(awake, shapes.body[j])
         c.raw_count[p] = m.count
         c.has_points[p] = 1 if m.count > 0 else 0
         c.raw_normal[p] = m.normal
@@ -206,18 +212,19 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
                 c.friction[q] = mu
                 c.restitution[q] = e
                 c.slop[q] = c.raw_slop[p]
+    n_shapes = shape_total(shapes, awake)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for k in range(shapes.dynamic_count[None]):
-        i = shapes.dynamic_ids[k]
+    for k in range(n_shapes):
+        i = shape_id(shapes, awake, k)
         p0 = bp.pair_start[k]
         p1 = bp.pair_start[k + 1]
         c.shape_first[i] = c.point_start[ti.min(p0, n_pairs)]
         c.shape_last[i] = c.point_start[ti.min(p1, n_pairs)]
-    close_step(cache, bp, shapes, n_pairs)
+    close_step(cache, bp, shapes, n_pairs, awake)
 
 
 @ti.kernel
 def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
                   pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
-                  reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template()):
-    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_sin, kinds)
+                  reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(), awake: ti.template()):
+    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_sin, kinds, awake)

@@ -32,6 +32,7 @@ integer count: deterministic.
 
 import taichi as ti
 
+from .awake import shape_id, shape_total
 from .backend import serialize_light_loops
 from .math3d import quat_conj, quat_mul, quat_rotate, quat_rotate_inv
 from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose, manifold_point, relative_pose
@@ -172,13 +173,15 @@ def remember_manifold(cache: ti.template(), p: ti.i32, j: ti.i32, m: Manifold, a
 
 
 @ti.func
-def close_step(cache: ti.template(), bp: ti.template(), shapes: ti.template(), n_pairs: ti.i32):
+def close_step(cache: ti.template(), bp: ti.template(), shapes: ti.template(), n_pairs: ti.i32, awake: ti.template()):
     """Record each dynamic shape's range of pair slots in this step's half, then hand the
-    halves over: what was written becomes what the next step reads."""
+    halves over: what was written becomes what the next step reads. ``awake`` (awake.py):
+    the shapes that enumerated pairs; a sleeping shape's manifolds wait in sleep.py's store."""
     cur = cache.parity[None]
+    n = shape_total(shapes, awake)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for k in range(shapes.dynamic_count[None]):
-        i = shapes.dynamic_ids[k]
+    for k in range(n):
+        i = shape_id(shapes, awake, k)
         cache.first[cur, i] = ti.min(bp.pair_start[k], n_pairs)
         cache.last[cur, i] = ti.min(bp.pair_start[k + 1], n_pairs)
     cache.parity[None] = 1 - cur

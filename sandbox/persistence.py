@@ -13,6 +13,7 @@ does not kick resting stacks. No atomics: the result is deterministic.
 
 import taichi as ti
 
+from .awake import shape_id, shape_total
 from .backend import serialize_light_loops
 
 vec3 = ti.math.vec3
@@ -86,7 +87,9 @@ def match_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), m
 
 @ti.func
 def store_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.template(), shapes: ti.template(),
-                         substeps: ti.i32):
+                         substeps: ti.i32, awake: ti.template()):
+    """This step's impulses for the next step's warm start. ``awake`` (awake.py): the shapes
+    whose contacts were found (a sleeping shape's impulses wait in sleep.py's store)."""
     n = ti.min(c.count[None], hist.capacity)
     hist.count[None] = n
     for q in range(n):
@@ -100,14 +103,15 @@ def store_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.templat
     for i in range(hist.shape_first.shape[0]):
         hist.shape_first[i] = 0
         hist.shape_last[i] = 0
+    n_shapes = shape_total(shapes, awake)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for k in range(shapes.dynamic_count[None]):
-        i = shapes.dynamic_ids[k]
+    for k in range(n_shapes):
+        i = shape_id(shapes, awake, k)
         hist.shape_first[i] = c.shape_first[i]
         hist.shape_last[i] = ti.min(c.shape_last[i], n)
 
 
 @ti.kernel
 def store_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), shapes: ti.template(),
-                   substeps: ti.i32):
-    store_contacts_loops(hist, c, rows, shapes, substeps)
+                   substeps: ti.i32, awake: ti.template()):
+    store_contacts_loops(hist, c, rows, shapes, substeps, awake)

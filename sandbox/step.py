@@ -81,11 +81,11 @@ class Stepper:
         gravity = ti.math.vec3(*c.gravity)
         fused = self.fused and not p.enabled  # the once-per-step stages in three launches (step_kernels.py)
         if not fused:
-            save_good_state(b.bodies)
+            save_good_state(b.bodies, awake)
             b.errors.clear()
-            update_world_inertia(b.bodies)
+            update_world_inertia(b.bodies, awake)
         self.residual_history = []
-        b = self._collide_growing(fused, h)
+        b = self._collide_growing(fused, h, awake)
         if watch:
             from .impact import clear_bodies, clear_points
 
@@ -124,10 +124,10 @@ class Stepper:
                 step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, k, awake)
             else:
                 check_velocities(b.bodies, b.errors, awake)
-                store_contacts(b.history, b.contacts, b.rows, b.shapes, k)
+                store_contacts(b.history, b.contacts, b.rows, b.shapes, k, awake)
         self._check_errors(b, step_count)
 
-    def _collide_growing(self, fused: bool, h: float):
+    def _collide_growing(self, fused: bool, h: float, awake):
         """Broadphase and narrowphase; an overflowing buffer is grown and the collision redone
         (a fused retry saves the restored, same, state again and redoes the inertias: same bits)."""
         for _attempt in range(MAX_GROWTH_RETRIES + 1):
@@ -135,25 +135,25 @@ class Stepper:
             if fused:
                 step_kernels.begin_and_collide(b.bodies, b.errors, b.bp, b.shapes, b.contacts, b.pool,
                                                b.manifold_cache, st.contact_margin, st.slop, h,
-                                               *st.manifold_reuse_bounds(), self.edits.kinds)
+                                               *st.manifold_reuse_bounds(), self.edits.kinds, awake)
             else:
-                self._collide(h)
+                self._collide(h, awake)
             if not self.edits.grow_if_needed():
                 return self.edits.buf
         raise CapacityError("contact buffers kept overflowing after growing; the scene is too dense")
 
-    def _collide(self, h: float) -> None:
+    def _collide(self, h: float, awake) -> None:
         from .broadphase import build_dynamic_grid, find_pairs
         from .contacts import collide_pairs
 
         b, p, st = self.edits.buf, self.profiler, self.edits.settings
         margin = st.contact_margin
         with p.stage("broadphase"):
-            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, h, b.errors)
-            find_pairs(b.bp, b.shapes)
+            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, h, b.errors, awake)
+            find_pairs(b.bp, b.shapes, awake)
         with p.stage("narrowphase"):
             collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, st.slop, h,
-                          *st.manifold_reuse_bounds(), self.edits.kinds)
+                          *st.manifold_reuse_bounds(), self.edits.kinds, awake)
 
     def _iterate_by_stage(self, schedule: Schedule, loop: Loop, record_residuals: bool) -> None:
         """The iteration loop a launch per phase, each in its stage. With warm starting, gravity

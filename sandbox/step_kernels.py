@@ -23,15 +23,16 @@ from .solvers.rows import prepare_row, respond_row, set_row_params
 @ti.kernel
 def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template(), shapes: ti.template(),
                       c: ti.template(), pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32,
-                      h: ti.f32, reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template()):
-    """Save the good state, clear the error flags, world inertias, broadphase, narrowphase."""
+                      h: ti.f32, reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(), awake: ti.template()):
+    """Save the good state, clear the error flags, world inertias, broadphase, narrowphase
+    (``awake``: of every body, or of a sleeping world's awake ones; awake.py)."""
     err.flags[None] = 0
     err.body[None] = BIG
-    save_good_state_loops(bodies)
-    update_world_inertia_loops(bodies)
-    build_dynamic_grid_loops(bp, shapes, bodies, margin, h, err)
-    find_pairs_loops(bp, shapes)
-    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_sin, kinds)
+    save_good_state_loops(bodies, awake)
+    update_world_inertia_loops(bodies, awake)
+    build_dynamic_grid_loops(bp, shapes, bodies, margin, h, err, awake)
+    find_pairs_loops(bp, shapes, awake)
+    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_sin, kinds, awake)
 
 
 @ti.kernel
@@ -55,4 +56,4 @@ def finish_step(hist: ti.template(), c: ti.template(), rows: ti.template(), bodi
                 shapes: ti.template(), err: ti.template(), substeps: ti.i32, awake: ti.template()):
     """Velocity check and the contact store for the next step's warm start."""
     check_velocities_loops(bodies, err, awake)
-    store_contacts_loops(hist, c, rows, shapes, substeps)
+    store_contacts_loops(hist, c, rows, shapes, substeps, awake)
