@@ -84,6 +84,8 @@ class BufferSet:
         self.errors = ErrorFlags()
         self.metrics = MetricBuffer()
         self.manifold_cache = ManifoldCache(caps.pairs, caps.shapes)
+        self.islands = None  # islands.Islands, allocated on first use (sleep.islands_of)
+        self.sleep = None  # sleep.SleepBuffers, allocated when a world of this class first sleeps
 
 
 _free: dict[Capacities, list[BufferSet]] = {}

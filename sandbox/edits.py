@@ -16,6 +16,11 @@ watched by ``impact.py`` only when the scene has some; one that broke in a step 
 fractured at the start of the next step, before that step's scripted events, as a logged
 event (``take_breaks``: the world applies and logs it), so a replay applies it from the log.
 
+With the ``sleeping`` effect (sleep.py) every edit wakes what it touches: a velocity, an
+impulse, a removal or a fracture wakes the islands of the bodies named, and a rebuild carries
+the sleeping islands over (their state and their stored impulses and manifolds follow the
+bodies' new indices), so dropping bodies beside a sleeping pile leaves it asleep.
+
 Nothing here knows the World or the solvers: the facade (world.py) calls these methods.
 """
 
@@ -25,7 +30,8 @@ import dataclasses
 
 import numpy as np
 
-from . import buffers
+from . import buffers, sleep
+from .awake import EVERY
 from .build import host_world, upload
 from .errors import CapacityError, SandboxError
 from .fracture import FractureError, check_arguments, fracture_body, piece_count
@@ -48,6 +54,7 @@ class Edits:
         self.last_fracture: list = []
         """``fracture.FractureResult`` of each body of the last fracture (how exact its pieces were)."""
         self._breaking: list[int] = []  # bodies that broke in the last step, fractured before the next
+        self.sleeping = False  # the sleeping effect is on (set_sleeping)
         reserve = _fracture_reserve(scene) + int(reserve_pieces)
         self.host = host_world(scene, settings)
         self.kinds = _union_kinds(self.host.kinds, (HULL,) if reserve else ())
@@ -68,24 +75,33 @@ class Edits:
             self._finalizer = None
 
     def grow_if_needed(self) -> bool:
-        """After a broadphase overflow: move to a bigger buffer class, keeping the body state."""
+        """After a broadphase overflow (or of a sleeping world's grid of sleeping shapes): move to
+        a bigger buffer class, keeping the body state and the sleeping islands."""
         from .bodies import restore_good_state
 
         b = self.buf
         entries = int(b.bp.entry_total[None])
         pairs = int(b.bp.pair_total[None])
-        if entries <= b.bp.entry_capacity and pairs <= b.bp.pair_capacity:
+        sleepers_full = self.sleeping and b.sleep.grid_full
+        if entries <= b.bp.entry_capacity and pairs <= b.bp.pair_capacity and not sleepers_full:
             return False
+        if sleepers_full:
+            entries = max(entries, 2 * b.caps.grid_entries)
         restore_good_state(b.bodies)
         n = len(self.host.body_arrays["inv_mass"])
         for k, v in b.bodies.host_state().items():
             self.host.body_arrays[k] = v[:n]
         caps = b.caps.grown(grid_entries=max(b.caps.grid_entries, 2 * entries), pairs=max(b.caps.pairs, 2 * pairs))
+        snap = self._sleep_snapshot()
         self.close()
         self._acquire(caps)
+        self._sleep_restore(snap, np.arange(n), self.host.shape_arrays["body"])
         return True
 
-    def _rebuild(self, bodies: list) -> None:
+    def _rebuild(self, bodies: list, body_map: np.ndarray) -> None:
+        """``body_map``: old body index -> new one (-1: gone), the static carrier included."""
+        snap = self._sleep_snapshot()
+        old_shape_body = self.host.shape_arrays["body"]
         self.bodies = bodies
         self.host = host_world(dataclasses.replace(self.scene, bodies=bodies), self.settings)
         self.kinds = _union_kinds(self.kinds, self.host.kinds)  # a kind once compiled stays: no recompile back
@@ -96,12 +112,48 @@ class Edits:
         else:
             self.close()
             self._acquire(caps)
+        self._sleep_restore(snap, body_map, old_shape_body)
         self._update_breakable()
+
+    # ------------------------------------------------------------------ sleeping
+    def awake_set(self, sleeping: bool):
+        """The ``awake`` argument of the step's kernels (awake.py)."""
+        return self.buf.sleep if sleeping else EVERY
+
+    def set_sleeping(self, on: bool) -> None:
+        """Turn the sleeping effect on (everything starts awake) or off (every island wakes, with
+        its stored impulses and manifolds)."""
+        if on and not self.sleeping:
+            sleep.start(self.buf, self.settings.contact_margin)
+        elif self.sleeping and not on:
+            sleep.wake(self.buf, self.settings.contact_margin)
+        self.sleeping = bool(on)
+
+    def wake(self, indices=None) -> None:
+        """Wake the islands of the bodies ``indices`` (checked), or every island (None)."""
+        if self.sleeping:
+            sleep.wake(self.buf, self.settings.contact_margin, indices)
+
+    def _sleep_snapshot(self):
+        if not self.sleeping:
+            return None
+        return sleep.snapshot(self.buf, len(self.host.body_arrays["inv_mass"]), self.host.shape_arrays["body"])
+
+    def _sleep_restore(self, snap, body_map: np.ndarray, old_shape_body: np.ndarray) -> None:
+        if snap is None:
+            return
+        new_count = len(self.host.body_arrays["inv_mass"])
+        shape_map = sleep.shape_map_for(old_shape_body, self.host.shape_arrays["body"], body_map, new_count)
+        sleep.restore(self.buf, snap, np.asarray(body_map, np.int64), shape_map, self.settings.contact_margin)
 
     # ------------------------------------------------------------------ queries
     @property
     def body_count(self) -> int:
         return len(self.bodies)
+
+    @property
+    def dynamic_count(self) -> int:
+        return sum(1 for b in self.bodies if not b.static)
 
     def body_name(self, i: int) -> str:
         if 0 <= i < len(self.bodies) and self.bodies[i].name:
@@ -137,14 +189,17 @@ class Edits:
         live = self.live_specs()
         self._check_body_budget(len(live) + len(bodies), "adding bodies")
         at = len(live) - self.tail
-        self._rebuild(live[:at] + list(bodies) + live[at:])
+        self._rebuild(live[:at] + list(bodies) + live[at:], _shifted(len(live), at, len(bodies)))
         return list(range(at, at + len(bodies)))
 
     def remove(self, indices: list[int]) -> None:
         """Remove bodies (indices checked by ``check_indices``); later bodies move down."""
         drop = set(indices)
+        self.wake(sorted(drop))  # what rested on them falls
         self.tail -= sum(1 for i in drop if i >= len(self.bodies) - self.tail)
-        self._rebuild([b for i, b in enumerate(self.live_specs()) if i not in drop])
+        kept = np.array([i not in drop for i in range(len(self.bodies) + 1)])  # + the static carrier
+        body_map = np.where(kept, np.cumsum(kept) - 1, -1)
+        self._rebuild([b for i, b in enumerate(self.live_specs()) if i not in drop], body_map)
 
     def check_fracture(self, bodies, pieces: int, seed: int, impulse: float) -> list[int]:
         """The indices to fracture, or SandboxError / FractureError naming what is wrong."""
@@ -165,6 +220,7 @@ class Edits:
     def fracture(self, idx: list[int], pieces: int, seed: int, impulse: float, impact: bool) -> list[int]:
         """Replace each body of ``idx`` (checked) by its pieces (module docstring); returns the
         pieces' indices. A body that cannot be split raises FractureError, the list unchanged."""
+        self.wake(idx)
         live = self.live_specs()
         results = []
         for k, i in enumerate(idx):
@@ -179,7 +235,9 @@ class Edits:
         for i, r in zip(idx, results):
             live[i] = r.bodies[0]
         at = len(live) if impact else len(live) - self.tail
-        self._rebuild(live[:at] + extras + live[at:])
+        body_map = _shifted(len(live), at, len(extras))
+        body_map[idx] = -1  # piece 0 takes the index, but it is another body
+        self._rebuild(live[:at] + extras + live[at:], body_map)
         if impact:
             self.tail += len(extras)
         self.last_fracture = results
@@ -192,6 +250,7 @@ class Edits:
 
     # ------------------------------------------------------------------ edits of the state
     def set_velocity(self, idx: list[int], linear=None, angular=None) -> None:
+        self.wake(idx)
         b = self.buf.bodies
         for name, value in (("lin_vel", linear), ("ang_vel", angular)):
             if value is not None:
@@ -203,6 +262,7 @@ class Edits:
 
     def apply_impulse(self, idx: list[int], impulse, point=None) -> None:
         j = finite_vector(impulse, "impulse")
+        self.wake(idx)
         b = self.buf.bodies
         v, w = b.lin_vel.to_numpy(), b.ang_vel.to_numpy()
         pos, rot, inv_i = b.pos.to_numpy(), b.rot.to_numpy(), b.inv_inertia.to_numpy()
@@ -245,6 +305,13 @@ class Edits:
         """Body i could not fracture on impact: it stays whole and stops being breakable."""
         self.bodies[i] = dataclasses.replace(self.bodies[i], breakable=False)
         self._update_breakable()
+
+
+def _shifted(count: int, at: int, inserted: int) -> np.ndarray:
+    """Old body index -> new when ``inserted`` bodies go in at ``at`` (the static carrier, index
+    ``count``, moves up with the rest)."""
+    old = np.arange(count + 1)
+    return np.where(old < at, old, old + inserted)
 
 
 def _union_kinds(a, b) -> tuple:

@@ -1,5 +1,9 @@
 """Per-step diagnostics computed in kernels: energy, penetration, LCP residual.
 
+Besides, the bodies awake and asleep and the islands (islands.py, sleep.py): a sleeping world
+counts them in its step; any other world labels its islands here, on demand (a diagnostic: no
+step of a world without the sleeping effect runs that kernel).
+
 Definitions follow method.md section 3: kinetic energy sum(1/2 m v^2 + 1/2 w.Iw)
 [J]; penetration max(0, -separation) over this step's contact points [m] (the
 points found at the start of the step, as the anchor engines report them); the
@@ -61,3 +65,29 @@ def read_metrics(b) -> dict:
         "residual_rms": float(np.sqrt(v[RES_SQ_SUM] / (3 * n))) if n else 0.0,
         "residual_max": float(np.sqrt(v[RES_MAX_SQ])),
     }
+
+
+def read_sleep_metrics(b, sleeping: bool, dynamic_count: int) -> dict:
+    """``awake_bodies``, ``sleeping_bodies`` (dynamic bodies) and ``islands`` (awake and asleep)."""
+    from .awake import EVERY
+    from .islands import label_islands
+    from .sleep import counts, islands_of
+
+    if sleeping:
+        c = counts(b)
+    else:
+        c = {"sleeping_bodies": 0, "islands": label_islands(islands_of(b), b.contacts, b.bodies, EVERY)}
+    return {"awake_bodies": dynamic_count - c["sleeping_bodies"], **c}
+
+
+def island_labels(b, sleeping: bool, n: int, static: np.ndarray) -> np.ndarray:
+    """Each body's island label (its smallest body index), -1 for static bodies."""
+    from .awake import EVERY
+    from .islands import label_islands
+    from .sleep import islands_of
+
+    if not sleeping:
+        label_islands(islands_of(b), b.contacts, b.bodies, EVERY)
+    labels = islands_of(b).label.to_numpy()[:n].astype(np.int64)
+    labels[static] = -1
+    return labels

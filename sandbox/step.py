@@ -37,7 +37,6 @@ import numpy as np
 import taichi as ti
 
 from . import step_kernels
-from .awake import EVERY
 from .errors import CapacityError, SimulationError
 from .solvers.schedule import Loop, Schedule
 
@@ -55,6 +54,7 @@ class Controls:
     restitution: bool
     record_residuals: bool  # a residual read after every biased sweep (forces the staged path)
     arch: str
+    sleeping: bool = False  # compile-time: resting islands sleep (sleep.py), the loops visit awake items only
 
 
 class Stepper:
@@ -72,10 +72,11 @@ class Stepper:
         from .bodies import save_good_state, update_world_inertia
         from .integrate import check_velocities
         from .persistence import match_contacts, store_contacts
+        from .sleep import after_step, rest_arguments
         from .solvers.rows import RESTITUTION, prepare_rows, soft_contact_coefficients
 
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
-        awake = EVERY  # every body (a sleeping world's awake set comes with the sleeping effect)
+        awake = self.edits.awake_set(c.sleeping)
         k = c.iterations
         h_sub = h / k
         gravity = ti.math.vec3(*c.gravity)
@@ -85,7 +86,8 @@ class Stepper:
             b.errors.clear()
             update_world_inertia(b.bodies, awake)
         self.residual_history = []
-        b = self._collide_growing(fused, h, awake)
+        b = self._collide_growing(fused, h, c.sleeping)
+        awake = self.edits.awake_set(c.sleeping)  # the buffers may have grown
         if watch:
             from .impact import clear_bodies, clear_points
 
@@ -121,26 +123,38 @@ class Stepper:
             if c.restitution and self.edits.host.has_restitution:
                 c.schedule.sweep(b, awake, RESTITUTION, c.friction)
             if fused:
-                step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, k, awake)
+                step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, k, awake,
+                                         *rest_arguments(h, s))
             else:
                 check_velocities(b.bodies, b.errors, awake)
                 store_contacts(b.history, b.contacts, b.rows, b.shapes, k, awake)
         self._check_errors(b, step_count)
+        if c.sleeping:
+            after_step(b, h, s, labelled=fused)
 
-    def _collide_growing(self, fused: bool, h: float, awake):
+    def _collide_growing(self, fused: bool, h: float, sleeping: bool):
         """Broadphase and narrowphase; an overflowing buffer is grown and the collision redone
-        (a fused retry saves the restored, same, state again and redoes the inertias: same bits)."""
-        for _attempt in range(MAX_GROWTH_RETRIES + 1):
+        (a fused retry saves the restored, same, state again and redoes the inertias: same bits).
+        In a sleeping world, a touched sleeping island is woken and the collision redone with
+        it awake (sleep.wake_touched): each redo wakes at least one island, so it ends."""
+        from .sleep import wake_touched
+
+        growths = 0
+        while True:
             b, st = self.edits.buf, self.edits.settings
+            awake = self.edits.awake_set(sleeping)
             if fused:
                 step_kernels.begin_and_collide(b.bodies, b.errors, b.bp, b.shapes, b.contacts, b.pool,
                                                b.manifold_cache, st.contact_margin, st.slop, h,
                                                *st.manifold_reuse_bounds(), self.edits.kinds, awake)
             else:
                 self._collide(h, awake)
-            if not self.edits.grow_if_needed():
-                return self.edits.buf
-        raise CapacityError("contact buffers kept overflowing after growing; the scene is too dense")
+            if self.edits.grow_if_needed():
+                growths += 1
+                if growths > MAX_GROWTH_RETRIES:
+                    raise CapacityError("contact buffers kept overflowing after growing; the scene is too dense")
+            elif not (sleeping and wake_touched(b, st.contact_margin)):
+                return b
 
     def _collide(self, h: float, awake) -> None:
         from .broadphase import build_dynamic_grid, find_pairs

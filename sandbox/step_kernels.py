@@ -16,6 +16,7 @@ from .broadphase import build_dynamic_grid_loops, find_pairs_loops
 from .contacts import collide_pairs_loops
 from .integrate import BIG, check_velocities_loops
 from .persistence import match_contact, store_contacts_loops
+from .sleep import rest_and_label_loops
 from .solvers.mass_splitting import build_adjacency_loops
 from .solvers.rows import prepare_row, respond_row, set_row_params
 
@@ -53,7 +54,11 @@ def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), h
 
 @ti.kernel
 def finish_step(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                shapes: ti.template(), err: ti.template(), substeps: ti.i32, awake: ti.template()):
-    """Velocity check and the contact store for the next step's warm start."""
+                shapes: ti.template(), err: ti.template(), substeps: ti.i32, awake: ti.template(), h: ti.f32,
+                lin: ti.f32, ang: ti.f32, rest_time: ti.f32):
+    """Velocity check and the contact store for the next step's warm start; in a sleeping
+    world also the rest timers and islands (sleep.rest_and_label_loops, its scalars after ``awake``)."""
     check_velocities_loops(bodies, err, awake)
     store_contacts_loops(hist, c, rows, shapes, substeps, awake)
+    if ti.static(awake.compact):
+        rest_and_label_loops(awake, c, bodies, h, lin, ang, rest_time, True)

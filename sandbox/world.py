@@ -63,9 +63,11 @@ class World:
         effects = tuple(getattr(scene, "effects", ("friction", "restitution")))
         self.friction = "friction" in effects  # compile-time: friction rows exist only if asked for
         self.restitution = "restitution" in effects
+        self.sleeping = False  # resting islands sleep (sleep.py); switched on below, once the solver is set
         opts = dict(scene.solver.options)
         opts.update(solver_options)
         self.set_solver(solver or scene.solver.name, iterations=iterations or scene.solver.iterations, **opts)
+        self._set_sleeping("sleeping" in effects)
         self.initial_solver = (self.solver, self.iterations, dict(self.solver_options))
         """The solver the world started with: a recording begun later re-simulates from step 0."""
 
@@ -103,32 +105,51 @@ class World:
 
     # ------------------------------------------------------------------ solver and world settings
     def set_solver(self, name: str, iterations: int | None = None, **options) -> None:
-        """Switch solver between steps; the world and its warm-start impulses are kept."""
+        """Switch solver between steps; the world and its warm-start impulses are kept (every
+        sleeping island wakes: the new solver may not hold it where the old one did)."""
         iterations = self.iterations if iterations is None else iterations
         self.solver_options = check_solver(name, iterations, options)
         self.solver = name
         self.iterations = iterations
         self._schedule = Schedule(name, self.solver_options)
+        self.wake()
 
     def set_gravity(self, gravity) -> None:
-        """A new gravity vector [m/s^2], from the next step on."""
+        """A new gravity vector [m/s^2], from the next step on (every sleeping island wakes)."""
         self.gravity = finite_vector(gravity, "gravity").astype(np.float32)
+        self.wake()
 
     def set_effects(self, effects) -> None:
-        """Switch contact effects between steps ("friction", "restitution"); each combination
-        compiles its own kernels on first use, so an effect that is off costs nothing."""
+        """Switch effects between steps ("friction", "restitution", "sleeping"); each combination
+        compiles its own kernels on first use, so an effect that is off costs nothing. A change
+        of the contact effects wakes every sleeping island; sleeping off wakes them too."""
         from .scene.loader import EFFECTS
 
         effects = tuple(effects)
         unknown = [e for e in effects if e not in EFFECTS]
         if unknown:
             raise SandboxError(f"unknown effect(s) {unknown}; known: {list(EFFECTS)}")
-        self.friction = "friction" in effects
-        self.restitution = "restitution" in effects
+        friction, restitution = "friction" in effects, "restitution" in effects
+        if (friction, restitution) != (self.friction, self.restitution):
+            self.wake()
+        self.friction, self.restitution = friction, restitution
+        self._set_sleeping("sleeping" in effects)
+
+    def _set_sleeping(self, on: bool) -> None:
+        self._edits.set_sleeping(on)
+        self.sleeping = bool(on)
 
     @property
     def effects(self) -> tuple:
-        return tuple(e for e, on in (("friction", self.friction), ("restitution", self.restitution)) if on)
+        flags = (("friction", self.friction), ("restitution", self.restitution), ("sleeping", self.sleeping))
+        return tuple(e for e, on in flags if on)
+
+    def wake(self, bodies=None) -> None:
+        """Wake the islands of ``bodies`` (indices), or every sleeping island (None). Nothing to
+        do without the sleeping effect. Edits wake what they touch by themselves."""
+        if bodies is not None:
+            bodies = self._edits.check_indices(bodies, "wake")
+        self._edits.wake(bodies)
 
     def set_timestep(self, dt: float | None = None, substeps: int | None = None) -> None:
         """A new step [s] and/or number of substeps; the state and warm start are kept."""
@@ -140,6 +161,7 @@ class World:
             if isinstance(substeps, bool) or not isinstance(substeps, (int, np.integer)) or not 1 <= substeps <= 1000:
                 raise SandboxError(f"substeps must be an integer in 1..1000, got {substeps!r}")
             self.substeps = int(substeps)
+        self.wake()
 
     # ------------------------------------------------------------------ edits and events
     def apply_event(self, event) -> None:
@@ -217,7 +239,7 @@ class World:
                 self.apply_event(self._pending.pop(0))
             watch = self._edits.watch_impacts and self.auto_fracture
             controls = Controls(self._schedule, self.iterations, self.gravity, self.friction, self.restitution,
-                                self.record_residuals, self.arch)
+                                self.record_residuals, self.arch, self.sleeping)
             for s in range(self.substeps):
                 self._stepper.substep(controls, h, watch, first=s == 0, step_count=self.step_count)
             if watch:
@@ -244,17 +266,35 @@ class World:
 
     def metrics(self) -> dict[str, float]:
         """Energy [J], penetration [m], contact counts and the LCP residual [m/s] after the last
-        step (metrics.py); ``colors`` too when the solver colours its manifolds."""
-        from .metrics import read_metrics
+        step (metrics.py); awake and sleeping bodies and islands (islands.py, sleep.py);
+        ``colors`` too when the solver colours its manifolds."""
+        from .metrics import read_metrics, read_sleep_metrics
         from .solvers.rows import RELAX, compute_residuals
 
         b = self.buf
         compute_residuals(b.rows, b.contacts, b.bodies, RELAX)  # the step ends with the rigid relax
-        out = {"step": self.step_count, "time": self.step_count * self.dt, **read_metrics(b)}
+        out = {"step": self.step_count, "time": self.step_count * self.dt, **read_metrics(b),
+               **read_sleep_metrics(b, self.sleeping, self._edits.dynamic_count)}
         colors = self._schedule.color_count(self.buf)
         if colors is not None:
             out["colors"] = colors
         return out
+
+    def asleep(self) -> np.ndarray:
+        """(N,) bool: which bodies sleep now (all False without the sleeping effect)."""
+        from .sleep import asleep_mask
+
+        if not self.sleeping:
+            return np.zeros(self.body_count, dtype=bool)
+        return asleep_mask(self.buf, self.body_count)
+
+    def island_labels(self) -> np.ndarray:
+        """(N,) int: each dynamic body's island as the smallest body index in it, -1 for static
+        bodies (islands.py). Awake bodies' islands are those of the last step's contacts."""
+        from .metrics import island_labels
+
+        static = np.array([b.static for b in self._edits.bodies], dtype=bool)
+        return island_labels(self.buf, self.sleeping, self.body_count, static)
 
     @property
     def last_color_count(self) -> int:

@@ -1,0 +1,436 @@
+"""Sleeping (the ``sleeping`` effect): resting islands stop being simulated until touched.
+
+After every step of a sleeping world (``after_step``): each awake body's rest timer grows by
+the step while its speed stays below ``Settings.sleep_linear_speed`` and its angular speed
+below ``sleep_angular_speed``, and restarts otherwise; the awake bodies' islands are
+labelled (islands.py); an island whose least rested body has rested ``Settings.sleep_time``
+falls asleep. Its bodies' velocities are zeroed (a sleeping body is at rest; Box2D does the
+same), their pose becomes their good state, and their shapes' warm-start impulses and
+manifolds go to the store (sleep_store.py).
+
+A sleeping body is in none of the step's lists (awake.py): its shapes are not in the grid
+the awake shapes search, it is not integrated, it is in no contact, its pairs are not
+narrow-phased again. Its shapes sit in a second grid, rebuilt when the sleeping set
+changes, that awake shapes also search (broadphase._visit_sleepers): an awake-sleeping pair
+is narrow-phased like any other, and if it has points the sleeping island is marked
+(awake.note_touch), woken, and the collision of that step done again from the same state
+(``wake_touched``), so the woken island's contacts are solved in the very step the touch
+began, with the stored manifolds and impulses (Box2D wakes a touched island mid-step too).
+Events wake islands from the host (``wake``): a velocity or impulse, a removal or fracture
+(the islands of the bodies named), gravity, solver, time-step and effects changes (all of
+them), ``World.wake``. Waking restores the records, restarts the timers and puts the bodies
+back in the lists. The lists and the grid are rebuilt with prefix sums in body and shape
+order, only when something falls asleep or wakes: deterministic, and a settled world's step
+visits no sleeping item at all.
+
+The buffers are allocated the first time a world of this capacity class sleeps, so a world
+without the effect allocates and compiles none of this (house rule 8).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import taichi as ti
+
+from .awake import ShapeList, body_id, body_total
+from .backend import serialize_light_loops
+from .bodies import save_body_state, update_body_inertia
+from .broadphase import Broadphase, build_dynamic_grid_loops
+from .islands import Islands, label_islands, label_rounds, start_labels
+from .narrowphase.manifold import MAX_POINTS
+from .prefix_sum import Scanner, exclusive_scan
+from .sleep_store import FALLING, WAKING, SleepStore, restore_wakers, save_sleepers
+
+vec3 = ti.math.vec3
+
+SPLIT, FALLING_COUNT, AWAKE_ISLANDS, SLEEPING_BODIES, SLEEPING_ISLANDS, GRID_ENTRIES = range(6)
+"""The slots of ``SleepBuffers.status``, read by the host once per step and after each event."""
+NEVER = 3.0e38
+
+
+@ti.data_oriented
+class SleepBuffers:
+    """A sleeping world's state, and the ``awake`` argument of its kernels (awake.py)."""
+
+    compact = True
+
+    def __init__(self, caps, islands: Islands):
+        nb, ns = max(1, caps.bodies), max(1, caps.shapes)
+        self.islands = islands
+        self.body_count = ti.field(ti.i32, ())
+        self.body_ids = ti.field(ti.i32, nb)
+        self.shape_count = ti.field(ti.i32, ())
+        self.shape_ids = ti.field(ti.i32, ns)
+        self.sleepers = ShapeList(ns)  # the sleeping shapes: what the grid holds
+        self.grid = Broadphase(ns, caps.grid_entries, 16, 16, 1)  # only its dynamic grid is used
+        self.asleep = ti.field(ti.i32, nb)
+        self.timer = ti.field(ti.f32, nb)  # [s] how long the body has rested
+        self.change = ti.field(ti.i32, nb)  # sleep_store.FALLING / WAKING during an event, else 0
+        self.island_rest = ti.field(ti.f32, nb)  # per island label: its least rested body's timer [s]
+        self.wake_mark = ti.field(ti.i32, nb)  # per island label: wake it
+        self.touched = ti.field(ti.i32, ())  # marks set since the last wake
+        self.status = ti.field(ti.i32, 8)
+        n = max(nb, ns) + 1
+        self.flag = ti.field(ti.i32, n)
+        self.rank = ti.field(ti.i32, n)
+        self.scanner = Scanner(n)
+        self.store = SleepStore(max(16, caps.pairs) * MAX_POINTS, caps.pairs, ns)
+        self.grid_full = False
+        """Set by the host when the sleeping shapes' grid overflowed its entries: the buffers grow
+        before the next collision (edits.grow_if_needed), as for the awake grid."""
+
+
+def _note_grid(sl: SleepBuffers) -> None:
+    """After an event rebuilt the sleeping grid: did it fit?"""
+    sl.grid_full = int(sl.status[GRID_ENTRIES]) > sl.grid.entry_capacity
+
+
+def islands_of(buf) -> Islands:
+    """The island labels of a buffer set, allocated on first use."""
+    if buf.islands is None:
+        buf.islands = Islands(buf.caps.bodies)
+    return buf.islands
+
+
+def buffers_of(buf) -> SleepBuffers:
+    if buf.sleep is None:
+        buf.sleep = SleepBuffers(buf.caps, islands_of(buf))
+    return buf.sleep
+
+
+# ---------------------------------------------------------------------------- kernels
+@ti.func
+def _refresh(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp: ti.template(), err: ti.template(),
+             margin: ti.f32):
+    """The awake lists, the sleeping shapes' list and grid, and the sleeping counts, from ``asleep``."""
+    nb = bodies.count[None]
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for i in range(nb):
+        sl.flag[i] = 1 if bodies.inv_mass[i] > 0.0 and sl.asleep[i] == 0 else 0
+    exclusive_scan(sl.scanner, sl.flag, sl.rank, nb, sl.body_count)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for i in range(nb):
+        if sl.flag[i]:
+            sl.body_ids[sl.rank[i]] = i
+    ns = shapes.dynamic_count[None]
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(ns):
+        sl.flag[k] = 1 - sl.asleep[shapes.body[shapes.dynamic_ids[k]]]
+    exclusive_scan(sl.scanner, sl.flag, sl.rank, ns, sl.shape_count)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(ns):
+        if sl.flag[k]:
+            sl.shape_ids[sl.rank[k]] = shapes.dynamic_ids[k]
+        sl.flag[k] = 1 - sl.flag[k]
+    exclusive_scan(sl.scanner, sl.flag, sl.rank, ns, sl.sleepers.shape_count)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(ns):
+        if sl.flag[k]:
+            sl.sleepers.shape_ids[sl.rank[k]] = shapes.dynamic_ids[k]
+    sl.grid.cell_size[None] = bp.cell_size[None]
+    build_dynamic_grid_loops(sl.grid, shapes, bodies, margin, 0.0, err, sl.sleepers)
+    sl.status[GRID_ENTRIES] = sl.grid.entry_total[None]
+    sl.status[SLEEPING_BODIES] = 0
+    sl.status[SLEEPING_ISLANDS] = 0
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for i in range(nb):
+        if sl.asleep[i]:
+            ti.atomic_add(sl.status[SLEEPING_BODIES], 1)
+            if sl.islands.label[i] == i:
+                ti.atomic_add(sl.status[SLEEPING_ISLANDS], 1)
+
+
+@ti.kernel
+def _start(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp: ti.template(), err: ti.template(),
+           margin: ti.f32):
+    """Everything awake, nothing stored, no marks."""
+    for i in range(bodies.count[None]):
+        sl.asleep[i] = 0
+        sl.timer[i] = 0.0
+        sl.change[i] = 0
+        sl.wake_mark[i] = 0
+    for h, i in sl.store.point_first:
+        sl.store.point_first[h, i] = 0
+        sl.store.point_last[h, i] = 0
+        sl.store.pair_first[h, i] = 0
+        sl.store.pair_last[h, i] = 0
+    sl.store.parity[None] = 0
+    sl.touched[None] = 0
+    _refresh(sl, shapes, bodies, bp, err, margin)
+
+
+@ti.kernel
+def _restart(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp: ti.template(), err: ti.template(),
+             margin: ti.f32):
+    """After ``asleep``, ``timer``, labels and store were written from the host (a rebuild)."""
+    for i in range(bodies.count[None]):
+        sl.change[i] = 0
+        sl.wake_mark[i] = 0
+    sl.touched[None] = 0
+    _refresh(sl, shapes, bodies, bp, err, margin)
+
+
+@ti.func
+def rest_and_label_loops(sl: ti.template(), c: ti.template(), bodies: ti.template(), h: ti.f32, lin: ti.f32,
+                         ang: ti.f32, rest_time: ti.f32, first: ti.template()):
+    """Rest timers (``first``: once per step), island labels, and which islands fall asleep
+    (``status``; applied by ``after_step``). At a kernel's top level: the fused step runs it
+    inside ``step_kernels.finish_step``."""
+    if ti.static(first):
+        n_rest = body_total(bodies, sl)
+        ti.loop_config(serialize=ti.static(serialize_light_loops()))
+        for k in range(n_rest):
+            i = body_id(sl, k)
+            if bodies.lin_vel[i].norm_sqr() <= lin * lin and bodies.ang_vel[i].norm_sqr() <= ang * ang:
+                sl.timer[i] += h
+            else:
+                sl.timer[i] = 0.0
+        start_labels(sl.islands, bodies, sl)
+    label_rounds(sl.islands, c, bodies, sl)
+    n = body_total(bodies, sl)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(n):
+        sl.island_rest[body_id(sl, k)] = NEVER
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(n):
+        i = body_id(sl, k)
+        ti.atomic_min(sl.island_rest[sl.islands.label[i]], sl.timer[i])  # a min: the same whatever the order
+    sl.status[FALLING_COUNT] = 0
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(n):
+        i = body_id(sl, k)
+        sl.change[i] = 0
+        if sl.island_rest[sl.islands.label[i]] >= rest_time:
+            sl.change[i] = FALLING
+            ti.atomic_add(sl.status[FALLING_COUNT], 1)
+    sl.status[SPLIT] = sl.islands.split[None]
+    sl.status[AWAKE_ISLANDS] = sl.islands.count[None]
+
+
+@ti.kernel
+def _rest_and_label(sl: ti.template(), c: ti.template(), bodies: ti.template(), h: ti.f32, lin: ti.f32, ang: ti.f32,
+                    rest_time: ti.f32, first: ti.template()):
+    rest_and_label_loops(sl, c, bodies, h, lin, ang, rest_time, first)
+
+
+def rest_arguments(h: float, settings) -> tuple:
+    """The scalars of ``rest_and_label_loops`` after ``c`` and ``bodies``: step [s], speeds, time."""
+    return h, settings.sleep_linear_speed, settings.sleep_angular_speed, settings.sleep_time
+
+
+@ti.kernel
+def _fall_asleep(sl: ti.template(), hist: ti.template(), cache: ti.template(), shapes: ti.template(),
+                 bodies: ti.template(), bp: ti.template(), err: ti.template(), margin: ti.f32):
+    save_sleepers(sl.store, hist, cache, shapes, sl.asleep, sl.change)
+    n = body_total(bodies, sl)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(n):
+        i = body_id(sl, k)
+        if sl.change[i] == FALLING:
+            sl.asleep[i] = 1
+            bodies.lin_vel[i] = vec3(0.0)
+            bodies.ang_vel[i] = vec3(0.0)
+            update_body_inertia(bodies, i)  # the inertia and good state of the pose it sleeps in
+            save_body_state(bodies, i)
+            sl.change[i] = 0
+            if sl.islands.label[i] == i:
+                ti.atomic_sub(sl.status[AWAKE_ISLANDS], 1)
+    _refresh(sl, shapes, bodies, bp, err, margin)
+
+
+@ti.kernel
+def _wake(sl: ti.template(), hist: ti.template(), cache: ti.template(), shapes: ti.template(), bodies: ti.template(),
+          bp: ti.template(), err: ti.template(), margin: ti.f32, everyone: ti.i32):
+    """Wake the marked islands (``everyone``: all of them)."""
+    nb = bodies.count[None]
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for i in range(nb):
+        sl.change[i] = 0
+        if sl.asleep[i]:
+            if everyone or sl.wake_mark[sl.islands.label[i]]:
+                sl.change[i] = WAKING
+    restore_wakers(sl.store, hist, cache, shapes, sl, sl.change)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for i in range(nb):
+        if sl.change[i] == WAKING:
+            sl.asleep[i] = 0
+            sl.timer[i] = 0.0
+            if sl.islands.label[i] == i:
+                ti.atomic_add(sl.status[AWAKE_ISLANDS], 1)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for i in range(nb):
+        sl.change[i] = 0
+        sl.wake_mark[i] = 0
+    sl.touched[None] = 0
+    _refresh(sl, shapes, bodies, bp, err, margin)
+
+
+@ti.kernel
+def _mark(sl: ti.template(), ids: ti.types.ndarray(dtype=ti.i32, ndim=1)):
+    for t in range(ids.shape[0]):
+        i = ids[t]
+        if sl.asleep[i]:
+            sl.wake_mark[sl.islands.label[i]] = 1
+            ti.atomic_add(sl.touched[None], 1)
+
+
+# ---------------------------------------------------------------------------- host side
+def start(buf, margin: float) -> None:
+    """Turn sleeping on for a world: every body awake, its islands labelled from the last contacts."""
+    sl = buffers_of(buf)
+    _start(sl, buf.shapes, buf.bodies, buf.bp, buf.errors, margin)
+    sl.status[AWAKE_ISLANDS] = label_islands(sl.islands, buf.contacts, buf.bodies, sl)
+    _note_grid(sl)
+
+
+def after_step(buf, h: float, settings, labelled: bool = False) -> None:
+    """Rest timers, islands, and the islands that fall asleep (module docstring). ``labelled``:
+    the step's last kernel has run ``rest_and_label_loops`` already (the fused step)."""
+    sl = buf.sleep
+    args = (sl, buf.contacts, buf.bodies, *rest_arguments(h, settings))
+    if not labelled:
+        _rest_and_label(*args, True)
+    status = sl.status.to_numpy()
+    while status[SPLIT] > 0:  # labels not converged in ROUNDS rounds: more rounds, then decide again
+        _rest_and_label(*args, False)
+        status = sl.status.to_numpy()
+    if status[FALLING_COUNT] > 0:
+        _fall_asleep(sl, buf.history, buf.manifold_cache, buf.shapes, buf.bodies, buf.bp, buf.errors,
+                     settings.contact_margin)
+        _note_grid(sl)
+
+
+def wake_touched(buf, margin: float) -> bool:
+    """After a narrowphase: wake the sleeping islands it found touched, handing the manifold
+    cache's halves back so the collision can be redone (True: redo it)."""
+    sl = buf.sleep
+    if int(sl.touched[None]) == 0:
+        return False
+    cache = buf.manifold_cache
+    cache.parity[None] = 1 - int(cache.parity[None])
+    _wake(sl, buf.history, cache, buf.shapes, buf.bodies, buf.bp, buf.errors, margin, 0)
+    _note_grid(sl)
+    return True
+
+
+def wake(buf, margin: float, bodies=None) -> None:
+    """Between steps: wake the islands of ``bodies`` (indices), or every island (None)."""
+    sl = buf.sleep
+    if bodies is None:
+        if int(sl.status[SLEEPING_BODIES]) > 0:
+            _wake(sl, buf.history, buf.manifold_cache, buf.shapes, buf.bodies, buf.bp, buf.errors, margin, 1)
+            _note_grid(sl)
+        return
+    ids = np.asarray(list(bodies), dtype=np.int32)
+    if len(ids) == 0:
+        return
+    _mark(sl, ids)
+    if int(sl.touched[None]) > 0:
+        _wake(sl, buf.history, buf.manifold_cache, buf.shapes, buf.bodies, buf.bp, buf.errors, margin, 0)
+        _note_grid(sl)
+
+
+def counts(buf) -> dict[str, int]:
+    """Sleeping bodies, and islands awake and asleep (the awake ones as of the last step)."""
+    s = buf.sleep.status.to_numpy()
+    return {"sleeping_bodies": int(s[SLEEPING_BODIES]), "islands": int(s[AWAKE_ISLANDS] + s[SLEEPING_ISLANDS])}
+
+
+def asleep_mask(buf, n: int) -> np.ndarray:
+    return buf.sleep.asleep.to_numpy()[:n].astype(bool)
+
+
+# ---------------------------------------------------------------------------- rebuilds
+@dataclass
+class SleepSnapshot:
+    """A sleeping world's state on the host, across a rebuild of its buffers (edits.py)."""
+
+    asleep: np.ndarray  # (bodies,) bool
+    timer: np.ndarray  # (bodies,) [s]
+    label: np.ndarray  # (bodies,) island labels (body indices)
+    records: dict  # the store's records of the sleeping shapes (SleepStore.read)
+    awake_islands: int
+
+
+def snapshot(buf, n_bodies: int, shape_body: np.ndarray) -> SleepSnapshot:
+    """``shape_body``: each shape's body, to keep only the sleeping shapes' records."""
+    sl = buf.sleep
+    asleep = sl.asleep.to_numpy()[:n_bodies].astype(bool)
+    records = sl.store.read()
+    for kind in ("point", "pair"):
+        owner = records[kind + "_owner"]
+        keep = asleep[shape_body[owner]] if len(owner) else np.zeros(0, bool)
+        for key in [k for k in records if k.startswith(kind + "_") or (kind == "pair" and k.startswith("slot_"))]:
+            records[key] = records[key][keep]
+    return SleepSnapshot(asleep, sl.timer.to_numpy()[:n_bodies], sl.islands.label.to_numpy()[:n_bodies], records,
+                         int(sl.status[AWAKE_ISLANDS]))
+
+
+def restore(buf, snap: SleepSnapshot, body_map: np.ndarray, shape_map: np.ndarray, margin: float) -> None:
+    """Install a snapshot in (possibly new) buffers, old body i becoming body ``body_map[i]``
+    and old shape s shape ``shape_map[s]`` (-1: gone). A sleeping body whose island label
+    is gone wakes (an edit that removes a body wakes its island first, so this is a guard)."""
+    sl = buffers_of(buf)
+    n_new = int(buf.bodies.count[None])
+    kept = body_map >= 0
+    asleep = np.zeros(n_new, bool)
+    timer = np.zeros(n_new, np.float32)
+    label = np.full(n_new, -1, np.int32)
+    old_label = snap.label.astype(np.int64)
+    new_label = np.where(old_label >= 0, body_map[np.clip(old_label, 0, None)], -1)
+    asleep[body_map[kept]] = snap.asleep[kept] & (new_label[kept] >= 0)
+    timer[body_map[kept]] = snap.timer[kept]
+    label[body_map[kept]] = new_label[kept]
+    records = _remap_records(snap.records, shape_map)
+    body_of = _new_shape_bodies(buf)
+    for kind in ("point", "pair"):
+        owner = records[kind + "_owner"]
+        keep = asleep[body_of[owner]] if len(owner) else np.zeros(0, bool)
+        for key in [k for k in records if k.startswith(kind + "_") or (kind == "pair" and k.startswith("slot_"))]:
+            records[key] = records[key][keep]
+    sl.store.write(records)
+    for field, values in ((sl.asleep, asleep.astype(np.int32)), (sl.timer, timer), (sl.islands.label, label)):
+        full = field.to_numpy()
+        full[:n_new] = values
+        field.from_numpy(full)
+    _restart(sl, buf.shapes, buf.bodies, buf.bp, buf.errors, margin)
+    sl.status[AWAKE_ISLANDS] = snap.awake_islands
+    _note_grid(sl)
+
+
+def _remap_records(records: dict, shape_map: np.ndarray) -> dict:
+    """Owners and partners to the new shape ids, dropping records of shapes that are gone, then
+    sorted by owner (stable, so each shape keeps its records' order)."""
+    out = {}
+    for kind, partner_key in (("point", "point_partner"), ("pair", "pair_partner")):
+        owner = shape_map[records[kind + "_owner"]] if len(records[kind + "_owner"]) else records[kind + "_owner"]
+        partner = records[partner_key].astype(np.int64)
+        moved = np.where(partner >= 0, shape_map[np.clip(partner, 0, None)] if len(partner) else partner, partner)
+        keep = (owner >= 0) & ((partner < 0) | (moved >= 0))
+        order = np.argsort(owner[keep], kind="stable")
+        keys = [k for k in records if k.startswith(kind + "_") or (kind == "pair" and k.startswith("slot_"))]
+        for key in keys:
+            out[key] = records[key][keep][order]
+        out[kind + "_owner"] = owner[keep][order]
+        out[partner_key] = moved[keep][order].astype(np.int32)
+    return out
+
+
+def _new_shape_bodies(buf) -> np.ndarray:
+    return buf.shapes.body.to_numpy()[: int(buf.shapes.count[None])].astype(np.int64)
+
+
+def shape_map_for(old_shape_body: np.ndarray, new_shape_body: np.ndarray, body_map: np.ndarray,
+                  new_body_count: int) -> np.ndarray:
+    """Old shape id -> new shape id (-1: its body is gone). A world's shapes are laid out body
+    by body in body order, then the mesh triangles on the static carrier (build.py), so a
+    shape keeps its place within its body's run."""
+    old_shape_body = np.asarray(old_shape_body, np.int64)
+    new_shape_body = np.asarray(new_shape_body, np.int64)
+    if len(old_shape_body) == 0:
+        return np.zeros(0, np.int64)
+    old_start = np.searchsorted(old_shape_body, np.arange(len(body_map)))
+    new_start = np.searchsorted(new_shape_body, np.arange(new_body_count))
+    local = np.arange(len(old_shape_body)) - old_start[old_shape_body]
+    target = body_map[old_shape_body]
+    return np.where(target >= 0, new_start[np.clip(target, 0, None)] + local, -1)
