@@ -44,6 +44,8 @@ SHIPPED = {"box_on_plane", "stack_20", "pyramid_20", "pile_1000", "mixed_on_terr
 SCENE_FRICTION = {"leaning_planks": 0.7, "friction_arch": 0.6, "dominoes": 0.6}
 """Scenes of method.md section 2 that call for another Coulomb coefficient than the anchors' 0.5."""
 ZERO_GRAVITY = {"spinning_bodies"}
+SLEEPING = {"playground", "headline_pile", "destruction_arena", "confined_pile", "scripted_drop_300"}
+"""The showcase scenes that call for the sleeping effect; benchmark scenes never do (sleep would hide jitter)."""
 MAX_SHIPPED_BODIES = 1500
 """The smoke test runs every shipped scene for 60 steps on a 2-core CPU; bigger scenes document how to scale up."""
 
@@ -76,7 +78,7 @@ def test_scene_file_loads_with_conventions(path):
         assert plane.friction == friction and plane.restitution == 0.0
     for mesh in scene.meshes:
         assert mesh.friction == friction and mesh.restitution == 0.0
-    assert scene.effects == ("friction", "restitution")
+    assert scene.effects == ("friction", "restitution") + (("sleeping",) if path.stem in SLEEPING else ())
     times = [e.time for e in scene.events]
     assert times == sorted(times)
     if scene.events:
