@@ -35,7 +35,7 @@ def cmd_run(args) -> int:
     world.profiler.reset()
     build_s = time.perf_counter() - t0
     steps = args.steps
-    series = {"kinetic_energy": [], "max_penetration": [], "contacts": []}
+    series = {"kinetic_energy": [], "max_penetration": [], "contacts": [], "awake_bodies": []}
     recorder = None
     if args.record:
         from .recording import Recorder
@@ -58,6 +58,7 @@ def cmd_run(args) -> int:
         "solver": world.solver,
         "solver_options": world.solver_options,
         "iterations": world.iterations,
+        "effects": list(world.effects),
         "dt": world.dt,
         "substeps": world.substeps,
         "steps": steps,
@@ -74,6 +75,9 @@ def cmd_run(args) -> int:
     print(f"scene      {path}  ({world.body_count} bodies, arch {world.arch})")
     print(f"solver     {world.solver}, {world.iterations} iterations, dt {world.dt:.5f} s x {steps} steps")
     print(f"contacts   {m['contacts']} points in {m['manifolds']} manifolds")
+    dynamic = m["awake_bodies"] + m["sleeping_bodies"]
+    print(f"islands    {m['islands']}; {m['awake_bodies']} of {dynamic} dynamic bodies awake, "
+          f"{m['sleeping_bodies']} asleep" + ("" if world.sleeping else " (no sleeping effect)"))
     print(f"energy     kinetic {m['kinetic_energy']:.3e} J   penetration max {1e3 * m['max_penetration']:.2f} mm,"
           f" mean {1e3 * m['mean_penetration']:.2f} mm")
     print(f"residual   rms {m['residual_rms']:.2e} m/s, max {m['residual_max']:.2e} m/s")

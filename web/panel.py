@@ -21,6 +21,8 @@ from sandbox import EFFECTS, SOLVERS, EventSpec, SandboxError, Scene, resolve_sc
 from .debris import DEBRIS_MIXES, debris_bodies
 from .render import COLOR_MODES
 
+EFFECT_HINTS = {"sleeping": "Resting islands stop being simulated until something touches them (drawn dimmed); "
+                            "untick it to watch a solver's jitter"}
 TIME_STEPS = {"1/30 s": 1 / 30, "1/60 s": 1 / 60, "1/120 s": 1 / 120, "1/240 s": 1 / 240}
 MAX_ITERATIONS = 100
 
@@ -88,7 +90,8 @@ class ControlPanel:
         with gui.add_folder("Effects"):
             self.gravity = gui.add_checkbox("Gravity", snap.gravity_on)
             self.gravity.on_update(self._on_gravity)
-            self.effects = {e: gui.add_checkbox(e.capitalize(), e in snap.effects) for e in EFFECTS}
+            self.effects = {e: gui.add_checkbox(e.capitalize(), e in snap.effects, hint=EFFECT_HINTS.get(e))
+                            for e in EFFECTS}
             for box in self.effects.values():
                 box.on_update(self._on_effects)
             self.realtime = gui.add_checkbox("Real time", True, hint="Off: step as fast as the machine can")
@@ -309,6 +312,7 @@ class ControlPanel:
             "| | |\n|---|---|",
             f"| bodies | **{len(snap.bodies)}** |",
             f"| contacts | {m['contacts']} ({m['manifolds']} manifolds) |",
+            f"| awake / asleep | {m['awake_bodies']} / {m['sleeping_bodies']} bodies, {m['islands']} islands |",
         ]
         if "colors" in m:
             lines.append(f"| colours | {m['colors']} |")
@@ -338,7 +342,7 @@ class ControlPanel:
             kinds = "+".join(s.kind for s in body.shapes)
             text = (f"Body **{selected}**{f' ({body.name})' if body.name else ''}: {kinds}, "
                     f"{'static' if body.static else f'{body.mass:.3g} kg'}, "
-                    f"|v| = {snap.speeds[selected]:.3g} m/s")
+                    f"|v| = {snap.speeds[selected]:.3g} m/s{', asleep' if snap.asleep[selected] else ''}")
         self._set(self.selection, "content", text)
         self._set(self.remove, "disabled", selected is None)
         self._set(self.fracture, "disabled", selected is None)

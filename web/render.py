@@ -15,6 +15,7 @@ PALETTE = np.array([
 ], dtype=np.uint8)
 COLOR_MODES = ("shape", "speed")
 SPEED_RANGE = (-3.0, 1.0)  # log10 |v| [m/s] mapped from blue (at rest) to red (moving)
+ASLEEP_SHADE = 0.45  # a sleeping body's colour is scaled by this: dimmed, its hue kept
 
 
 class _Batch:
@@ -109,7 +110,8 @@ class WorldView:
     # ------------------------------------------------------------------ per frame
     def _colors(self, snap, selected, mode) -> np.ndarray | None:
         """Per-body colours, or None when nothing changed since the last frame."""
-        key = (snap.generation, selected, mode)
+        asleep = snap.asleep
+        key = (snap.generation, selected, mode, asleep.tobytes() if asleep.any() else b"")
         if mode == "shape" and key == self._colors_key:
             return None
         self._colors_key = key
@@ -120,6 +122,8 @@ class WorldView:
             colors[self._static_mask] = STATIC
         else:
             colors = self._base_colors.copy()
+        if len(asleep) == len(colors):
+            colors[asleep] = (colors[asleep] * ASLEEP_SHADE).astype(np.uint8)
         if selected is not None and 0 <= selected < len(colors):
             colors[selected] = SELECTED
         return colors

@@ -39,6 +39,7 @@ class Snapshot:
     positions: np.ndarray  # (N, 3) float32
     orientations: np.ndarray  # (N, 4) float32, w x y z
     speeds: np.ndarray  # (N,) float32 [m/s]
+    asleep: np.ndarray  # (N,) bool: bodies of sleeping islands (drawn dimmed)
     bodies: tuple  # BodySpecs of this generation (shared, read-only)
     scene: Scene
     metrics: dict
@@ -299,6 +300,7 @@ class Simulation:
             positions=st["position"].astype(np.float32),
             orientations=st["orientation"].astype(np.float32),
             speeds=np.linalg.norm(st["linear_velocity"], axis=1).astype(np.float32),
+            asleep=w.asleep(),
             bodies=w.body_specs if self._latest is None or self._latest.generation != self._generation
             else self._latest.bodies,
             scene=w.scene,
