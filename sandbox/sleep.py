@@ -357,10 +357,12 @@ def snapshot(buf, n_bodies: int, shape_body: np.ndarray) -> SleepSnapshot:
     sl = buf.sleep
     asleep = sl.asleep.to_numpy()[:n_bodies].astype(bool)
     records = sl.store.read()
+    shape_body = np.asarray(shape_body, np.int64)
     for kind in ("point", "pair"):
         owner = records[kind + "_owner"]
-        keep = asleep[shape_body[owner]] if len(owner) else np.zeros(0, bool)
-        for key in [k for k in records if k.startswith(kind + "_") or (kind == "pair" and k.startswith("slot_"))]:
+        keep = owner < len(shape_body)  # a pooled buffer's ranges past this world's shapes are stale
+        keep[keep] = asleep[shape_body[owner[keep]]]
+        for key in _record_keys(records, kind):
             records[key] = records[key][keep]
     return SleepSnapshot(asleep, sl.timer.to_numpy()[:n_bodies], sl.islands.label.to_numpy()[:n_bodies], records,
                          int(sl.status[AWAKE_ISLANDS]))
@@ -384,9 +386,8 @@ def restore(buf, snap: SleepSnapshot, body_map: np.ndarray, shape_map: np.ndarra
     records = _remap_records(snap.records, shape_map)
     body_of = _new_shape_bodies(buf)
     for kind in ("point", "pair"):
-        owner = records[kind + "_owner"]
-        keep = asleep[body_of[owner]] if len(owner) else np.zeros(0, bool)
-        for key in [k for k in records if k.startswith(kind + "_") or (kind == "pair" and k.startswith("slot_"))]:
+        keep = asleep[body_of[records[kind + "_owner"]]]
+        for key in _record_keys(records, kind):
             records[key] = records[key][keep]
     sl.store.write(records)
     for field, values in ((sl.asleep, asleep.astype(np.int32)), (sl.timer, timer), (sl.islands.label, label)):
@@ -403,17 +404,21 @@ def _remap_records(records: dict, shape_map: np.ndarray) -> dict:
     sorted by owner (stable, so each shape keeps its records' order)."""
     out = {}
     for kind, partner_key in (("point", "point_partner"), ("pair", "pair_partner")):
-        owner = shape_map[records[kind + "_owner"]] if len(records[kind + "_owner"]) else records[kind + "_owner"]
+        owner = shape_map[records[kind + "_owner"].astype(np.int64)]
         partner = records[partner_key].astype(np.int64)
-        moved = np.where(partner >= 0, shape_map[np.clip(partner, 0, None)] if len(partner) else partner, partner)
+        moved = np.where(partner >= 0, shape_map[np.clip(partner, 0, None)], partner)  # planes: -1 - index
         keep = (owner >= 0) & ((partner < 0) | (moved >= 0))
         order = np.argsort(owner[keep], kind="stable")
-        keys = [k for k in records if k.startswith(kind + "_") or (kind == "pair" and k.startswith("slot_"))]
-        for key in keys:
+        for key in _record_keys(records, kind):
             out[key] = records[key][keep][order]
         out[kind + "_owner"] = owner[keep][order]
         out[partner_key] = moved[keep][order].astype(np.int32)
     return out
+
+
+def _record_keys(records: dict, kind: str) -> list[str]:
+    """The arrays of one kind of record: "point" (history) or "pair" (manifolds, with their slots)."""
+    return [k for k in records if k.startswith(kind + "_") or (kind == "pair" and k.startswith("slot_"))]
 
 
 def _new_shape_bodies(buf) -> np.ndarray:

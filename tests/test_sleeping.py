@@ -1,0 +1,214 @@
+"""Islands and sleeping (issue 16): labels on a hand-made graph, and three columns of boxes that
+fall asleep, are woken by what touches them, keep their warm start, and replay bit for bit."""
+
+import numpy as np
+import pytest
+
+from sandbox import Scene, World
+from sandbox.recording import Recorder, replay
+from sandbox.scene.spec import EventSpec
+
+from .conftest import box_body, scene_dict
+
+COLUMNS = (-3.0, 0.0, 3.0)  # three columns of three unit boxes, 2 m apart: three islands
+SLEEPING = ["friction", "restitution", "sleeping"]
+SETTLE = 40
+"""Steps after which every column sleeps: 0.5 s of rest (Settings.sleep_time) is 30 steps at 60 Hz,
+and the columns start at rest."""
+
+SCENE_TOML = """
+effects = ["friction", "restitution", "sleeping"]
+[world]
+gravity = [0.0, 0.0, -9.81]
+dt = 0.016666666666666666
+[solver]
+name = "pgs"
+iterations = 10
+[[static]]
+shape = "plane"
+normal = [0.0, 0.0, 1.0]
+{bodies}
+[[event]]
+time = 0.75
+kind = "drop"
+count = 1
+region = [[-3.45, -0.45, 4.0], [-2.55, 0.45, 4.85]]
+shapes = ["box"]
+half_extents = 0.4
+orientation = "identity"
+seed = 1
+"""
+"""The columns, and at 0.75 s (asleep by then) a box dropped about 0.7 m above the first column."""
+
+
+def _columns():
+    return [box_body([x, 0.0, 0.5 + k]) for x in COLUMNS for k in range(3)]
+
+
+def _world(effects=SLEEPING, solver="pgs"):
+    d = scene_dict(_columns(), solver=solver)
+    d["effects"] = list(effects)
+    return World(Scene.from_dict(d), arch="cpu")
+
+
+def _same(a: dict, b: dict) -> bool:
+    return all(np.array_equal(a[k], b[k]) for k in a)
+
+
+# ---------------------------------------------------------------------------- islands
+def test_island_labels_on_a_hand_made_contact_graph():
+    """Bodies 0..11, body 11 static; the labels are each island's smallest body index, -1 for the
+    static body, which joins nothing (2 and 9 both touch it and stay apart)."""
+    from sandbox.awake import EVERY
+    from sandbox.bodies import Bodies
+    from sandbox.contacts import Contacts
+    from sandbox.islands import Islands, label_islands
+
+    n, static = 12, 11
+    edges = [(10, 9), (9, 8), (8, 7), (7, 6), (5, 3), (3, 0), (1, 4), (2, static), (static, 9), (4, 4)]
+    bodies, contacts, isl = Bodies(16), Contacts(16, 16), Islands(16)
+    inv_mass = np.zeros(16, np.float32)
+    inv_mass[:n] = 1.0
+    inv_mass[static] = 0.0
+    bodies.inv_mass.from_numpy(inv_mass)
+    bodies.count[None] = n
+    for field, column in ((contacts.m_body_a, 0), (contacts.m_body_b, 1)):
+        values = np.zeros(field.shape[0], np.int32)
+        values[: len(edges)] = [e[column] for e in edges]
+        field.from_numpy(values)
+    contacts.manifold_count[None] = len(edges)
+    expected = np.array([0, 1, 2, 0, 1, 0, 6, 6, 6, 6, 6, -1])
+    for _ in range(2):  # the same labels again: nothing depends on the previous call or on timing
+        assert label_islands(isl, contacts, bodies, EVERY) == 4
+        assert np.array_equal(isl.label.to_numpy()[:n], expected)
+        # numbered by a prefix sum over the roots (0, 1, 2, 6) in body order
+        assert np.array_equal(isl.number.to_numpy()[:n], [0, 1, 2, 0, 1, 0, 3, 3, 3, 3, 3, -1])
+
+
+# ---------------------------------------------------------------------------- sleeping
+@pytest.mark.parametrize("solver", ["pgs", "mass-splitting"])
+def test_sleeping_changes_no_bit_until_an_island_sleeps(solver):
+    """The awake lists run the same arithmetic as the full loops; then every column sleeps at rest."""
+    on, off = _world(solver=solver), _world(effects=["friction", "restitution"], solver=solver)
+    while True:
+        on.step(1)
+        off.step(1)
+        if on.asleep().any():
+            break
+        assert _same(on.state(), off.state()), f"step {on.step_count}"
+    # the step that put them to sleep ran the same too; only then were the velocities zeroed
+    assert on.step_count > 20 and np.array_equal(on.state()["position"], off.state()["position"])
+    on.step(SETTLE - on.step_count)
+    m = on.metrics()
+    assert on.asleep().all() and (m["awake_bodies"], m["sleeping_bodies"], m["islands"]) == (0, 9, 3)
+    assert not np.any(on.state()["linear_velocity"]) and not np.any(on.state()["angular_velocity"])
+    assert list(on.island_labels()) == [0, 0, 0, 3, 3, 3, 6, 6, 6]
+    assert off.metrics()["sleeping_bodies"] == 0 and off.metrics()["islands"] == 3
+
+
+def test_a_dropped_box_wakes_the_island_it_touches_and_replays_bit_for_bit(tmp_path):
+    bodies = "\n".join(f'[[body]]\nshape = "box"\nhalf_extents = [0.5, 0.5, 0.5]\nposition = [{x}, 0.0, {0.5 + k}]'
+                       for x in COLUMNS for k in range(3))
+    path = tmp_path / "columns.toml"
+    path.write_text(SCENE_TOML.format(bodies=bodies))
+    runs = []
+    for _ in range(2):
+        world = World(Scene.load(path), arch="cpu")
+        recorder = Recorder(world, path)  # frame 0, then one frame per step
+        for _ in range(SETTLE):
+            world.step(1)
+            recorder.capture()
+        assert world.asleep().all()
+        rested = world.state()["position"].copy()
+        woke = np.zeros(9, dtype=bool)
+        for _ in range(60):  # the drop at step 45 lands about 20 steps later
+            world.step(1)
+            recorder.capture()
+            woke |= ~world.asleep()[:9]
+        moved = np.abs(world.state()["position"][:9] - rested).max(axis=1)
+        assert woke[:3].all() and not woke[3:9].any()  # the first column woke, the others never did
+        assert moved[:3].min() > 0.0 and not moved[3:].any()  # ... and moved; the others did not, by a bit
+        runs.append(world.state())
+    assert _same(*runs)
+    recorded = tmp_path / "columns.sbrec"
+    recorder.save(recorded)
+    result = replay(recorded)
+    assert result["first_departure"] is None and result["max_difference"] == 0.0
+
+
+def test_removing_the_bottom_box_wakes_the_column_and_it_falls():
+    world = _world()
+    world.step(SETTLE)
+    top = world.state()["position"][5, 2]
+    world.apply_event(EventSpec(time=0.0, kind="remove", bodies=[3]))  # the middle column's bottom box
+    assert list(world.asleep()) == [True] * 3 + [False] * 2 + [True] * 3
+    world.step(60)
+    # one box lower: within a centimetre (1 % of the fall) the column has landed, not still falling
+    assert world.state()["position"][4, 2] == pytest.approx(top - 1.0, abs=0.01)
+
+
+def test_edits_and_changes_wake_what_they_touch():
+    world = _world()
+    world.step(SETTLE)
+    world.set_velocity([7], linear=[0.0, 0.0, 0.0])  # even a zero velocity is an edit of the column
+    assert list(world.asleep()) == [True] * 6 + [False] * 3
+    world.step(SETTLE)
+    world.apply_impulse([1], [0.0, 0.0, 0.0])
+    assert list(world.asleep()) == [False] * 3 + [True] * 6
+    world.step(SETTLE)
+    world.wake([4])
+    assert list(world.asleep()) == [True] * 3 + [False] * 3 + [True] * 3
+    world.step(SETTLE)
+    world.set_gravity([0.0, 0.0, -9.0])
+    assert not world.asleep().any()
+    world.step(SETTLE)
+    world.set_effects(["friction", "restitution"])  # sleeping off: every island wakes
+    assert not world.asleep().any() and world.effects == ("friction", "restitution")
+
+
+def test_a_woken_island_starts_from_its_stored_impulses_and_manifolds():
+    """The records the columns fell asleep with come back exactly when they wake, so the first
+    step after takes every manifold back from the cache instead of searching again."""
+    world = _world()
+    hist = world.buf.history
+    fields = ("partner", "feature", "anchor", "lam_n", "lam_t")
+    while not world.asleep().all():
+        world.step(1)
+    first, last = hist.shape_first.to_numpy(), hist.shape_last.to_numpy()
+    stored = {k: getattr(hist, k).to_numpy() for k in fields}
+    shapes = range(9)  # the boxes' shapes, one each
+    before = {i: {k: stored[k][first[i]:last[i]] for k in fields} for i in shapes}
+    world.step(5)  # asleep: the steps find no contacts, and the history is emptied
+    assert world.metrics()["contacts"] == 0 and not np.any(hist.shape_last.to_numpy()[:9])
+    world.wake()
+    first, last = hist.shape_first.to_numpy(), hist.shape_last.to_numpy()
+    for i in shapes:
+        for k in fields:
+            assert np.array_equal(getattr(hist, k).to_numpy()[first[i]:last[i]], before[i][k]), (i, k)
+    world.step(1)
+    m = world.metrics()
+    assert m["manifolds"] == 9 and m["manifolds_reused"] == 9
+
+
+def test_a_rebuild_carries_the_sleeping_islands_over_with_their_new_indices():
+    """Removing the first column's bottom box wakes that column only; the other two stay asleep
+    through the rebuild, and their stored records follow their bodies down one index."""
+    world = _world()
+    hist = world.buf.history
+    fields = ("partner", "feature", "anchor", "lam_n", "lam_t")
+    while not world.asleep().all():
+        world.step(1)
+    first, last = hist.shape_first.to_numpy(), hist.shape_last.to_numpy()
+    before = {i: {k: getattr(hist, k).to_numpy()[first[i]:last[i]] for k in fields} for i in range(3, 9)}
+    world.remove_bodies([0])
+    assert list(world.asleep()) == [False] * 2 + [True] * 6
+    world.wake()
+    first, last = hist.shape_first.to_numpy(), hist.shape_last.to_numpy()
+    for i, old in before.items():
+        now = {k: getattr(hist, k).to_numpy()[first[i - 1]:last[i - 1]] for k in fields}
+        partner = old["partner"]
+        assert np.array_equal(now["partner"], np.where(partner >= 0, partner - 1, partner)), i  # planes stay < 0
+        for k in fields[1:]:
+            assert np.array_equal(now[k], old[k]), (i, k)
+    world.step(1)
+    assert world.metrics()["manifolds_reused"] == 6  # the two columns' pairs; the first column's cache was cleared
