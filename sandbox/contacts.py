@@ -44,6 +44,7 @@ class Contacts:
         self.raw_feature = ti.field(ti.i32, cc)
         self.has_points = ti.field(ti.i32, pc + 1)
         self.raw_slop = ti.field(ti.f32, pc)
+        self.raw_size = ti.field(ti.f32, pc)
         self.point_start = ti.field(ti.i32, pc + 1)
         self.manifold_index = ti.field(ti.i32, pc + 1)
         self.count = ti.field(ti.i32, ())
@@ -62,6 +63,7 @@ class Contacts:
         self.friction = ti.field(ti.f32, cc)
         self.restitution = ti.field(ti.f32, cc)
         self.slop = ti.field(ti.f32, cc)  # [m] the pair's tolerated penetration
+        self.size = ti.field(ti.f32, cc)  # [m] the pair's smaller bounding radius (contact_deflection)
         # per manifold (= per touching shape pair): the block of block mass splitting
         self.m_body_a = ti.field(ti.i32, pc)
         self.m_body_b = ti.field(ti.i32, pc)
@@ -157,6 +159,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
             swept += swept_distance(shapes, bodies, j, h)
         pair_margin = ti.min(margin, 0.25 * small) + swept
         c.raw_slop[p] = ti.min(slop, 0.1 * small)
+        c.raw_size[p] = small
         m = Manifold(count=0, normal=vec3(0.0, 0.0, 1.0))
         o = find_reusable(cache, i, j, a, b, pair_margin, reuse_d2, reuse_sin)
         if o >= 0:
@@ -206,6 +209,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
                 c.friction[q] = mu
                 c.restitution[q] = e
                 c.slop[q] = c.raw_slop[p]
+                c.size[q] = c.raw_size[p]
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(shapes.dynamic_count[None]):
         i = shapes.dynamic_ids[k]
