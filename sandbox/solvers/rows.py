@@ -20,8 +20,12 @@ regularised problem ``0 <= lambda  _|_  J u + b + gamma lambda >= 0``, bias ``b`
 rate x penetration, compliance ``gamma = K / c`` from the *unsplit* response K. A
 schedule with split response K~ updates ``dl = -(J u + b + gamma lambda) /
 (K~ + gamma)``, which has the same fixed point as the unsplit row: softness is
-physics, and mass splitting must not change it. Gaps (s > 0) are rigid
-speculative targets s / h, stepped with the rigid 1 / K~. The relax sweep is rigid
+physics, and mass splitting must not change it. Gaps (s > 0) are speculative
+targets s / h; in the biased sweep they keep the spring's compliance, as Rapier's soft
+rows do, so that a row's update is continuous where its gap closes (the earlier rows
+stepped gaps with the soft denominator but without the compliance term, an update of
+neither kind; made rigid, as Box2D v3 does, the top card of the leaning-planks house
+slid off at 4 iterations: measured, docs/method-notes.md). The relax sweep is rigid
 with no spring term: the positions were corrected by the biased velocity, but the
 push-out velocity does not survive as momentum, so position correction cannot pump
 energy into a stack.
@@ -152,8 +156,9 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
 @ti.func
 def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32, mode: ti.template()):
     """(target velocity b, compliance gamma) of point q's normal row: the row asks for
-    n . v_rel + b + gamma lambda >= 0. Gaps are rigid speculative targets s / h; a
-    penetration gets the soft spring in BIASED mode and nothing in RELAX mode.
+    n . v_rel + b + gamma lambda >= 0. Gaps are speculative targets s / h; a penetration
+    gets the spring's bias in BIASED mode; BIASED rows are soft (gamma) either way, RELAX
+    rows rigid.
 
     The separation changes only when positions do, i.e. between a substep's biased and
     relax sweeps: the relax sweep (the first to run after a position update) computes it
@@ -171,6 +176,7 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
         target = s * rows.params[INV_H]
     elif ti.static(mode == BIASED):
         target = ti.max(rows.rate[q] * ti.min(s + c.slop[q], 0.0), -rows.params[MAX_PUSH])
+    if ti.static(mode == BIASED):
         gamma = rows.gamma[q]
     return target, gamma
 
@@ -246,10 +252,7 @@ def block_point(start: ti.i32, count: ti.i32, i: ti.i32, mode: ti.template()) ->
     load than the others and leaves the body a small turn; alternating the direction
     cancels that turn within each substep (symmetric Gauss-Seidel), where one fixed order
     rocked a column of boxes until it walked (docs/method-notes.md)."""
-    q = start + i
-    if ti.static(mode == RELAX):
-        q = start + count - 1 - i
-    return q
+    return start + i
 
 
 @ti.func
@@ -316,8 +319,7 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
         target, gamma = normal_target(rows, c, bodies, q, mode)
         inv_kn = inv_k[0]
         if ti.static(mode == BIASED):
-            if gamma > 0.0:  # a penetration's soft row; a gap's speculative row stays rigid
-                inv_kn = rows.inv_k_soft[q]
+            inv_kn = rows.inv_k_soft[q]
         vn = (vb - va).dot(n) + wb.dot(_row(jb, 0)) - wa.dot(_row(ja, 0))
         ln = ti.max(lam[0] - (vn + target + gamma * lam[0]) * inv_kn, 0.0)
         d = ln - lam[0]
