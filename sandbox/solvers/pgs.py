@@ -18,7 +18,7 @@ overflow colour solved serially (as Box2D does).
 import numpy as np
 import taichi as ti
 
-from .rows import block_point, solve_point
+from .rows import solve_point
 
 MAX_COLORS = 64
 
@@ -29,9 +29,7 @@ def solve_manifold(rows: ti.template(), c: ti.template(), bodies: ti.template(),
     b = c.m_body_b[m]
     va, wa = bodies.lin_vel[a], bodies.ang_vel[a]
     vb, wb = bodies.lin_vel[b], bodies.ang_vel[b]
-    start, count = c.m_start[m], c.m_count[m]
-    for i in range(count):
-        q = block_point(start, count, i, mode)
+    for q in range(c.m_start[m], c.m_start[m] + c.m_count[m]):
         va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
     if bodies.inv_mass[a] > 0.0:
         bodies.lin_vel[a] = va

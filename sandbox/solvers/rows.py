@@ -246,16 +246,6 @@ def _row(m, r: ti.template()) -> vec3:
 
 
 @ti.func
-def block_point(start: ti.i32, count: ti.i32, i: ti.i32, mode: ti.template()) -> ti.i32:
-    """The i-th point a Gauss-Seidel pass over a block's points visits: forward in the biased
-    sweep, backward in the relax sweep. The first point a pass reaches takes more of the
-    load than the others and leaves the body a small turn; alternating the direction
-    cancels that turn within each substep (symmetric Gauss-Seidel), where one fixed order
-    rocked a column of boxes until it walked (docs/method-notes.md)."""
-    return start + i
-
-
-@ti.func
 def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32,
                 va: vec3, wa: vec3, vb: vec3, wb: vec3, mode: ti.template(), friction: ti.template()):
     """Friction rows then the normal row of point q, on velocity copies, with the
