@@ -67,8 +67,8 @@ def pytest_generate_tests(metafunc):
 
 def test_hard_case(combo):
     name, solver, iterations = combo
-    passed, figures = run_case(CASES[name], solver, iterations)
-    assert passed, f"{name} with {solver} at {iterations} iterations: {figures}"
+    r = run_case(CASES[name], solver, iterations)
+    assert r.passed, f"{name} with {solver} at {iterations} iterations: {r.figures}"
 
 
 @pytest.mark.parametrize("solver", ["pgs", "mass-splitting"])
@@ -77,7 +77,8 @@ def test_resting_block_at_extreme_iteration_counts(request, solver, iterations):
     """The resting block at 1 and at 500 iterations: finite always; at rest with 500."""
     if not request.config.getoption("--stress"):
         pytest.skip("stress only (pytest --stress): 500 substeps per step")
-    passed, figures = run_case(CASES["resting_block_27"], solver, iterations)
+    r = run_case(CASES["resting_block_27"], solver, iterations)
+    passed, figures = r.passed, r.figures
     assert "non-finite" not in figures, figures
     if iterations == 500:
         if not passed:  # measured: KE 1.9e-2 J (pgs), 7.2e-2 J (mass splitting), criterion 1e-2 J
@@ -90,5 +91,5 @@ def test_long_run_of_a_resting_block(request, solver):
     """10 000 steps (2 min 47 s simulated) of the resting block: finite and still at rest."""
     if not request.config.getoption("--stress"):
         pytest.skip("stress only (pytest --stress): 10 000 steps")
-    passed, figures = run_case(CASES["resting_block_27"], solver, 15, steps=10_000)
-    assert passed, figures
+    r = run_case(CASES["resting_block_27"], solver, 15, steps=10_000)
+    assert r.passed, r.figures
