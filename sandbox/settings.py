@@ -50,7 +50,8 @@ class Settings:
     measured onset kappa ~0.7 for PGS, mass splitting and block mass splitting alike on
     the 210-box pyramid). Higher is stiffer and closer to that onset; lower sags more.
     The limit also bounds every stable one-sweep schedule's static deflection from below
-    (F K~ h^2 / (S kappa^2)): few iterations sag, they never fly."""
+    (F K~ h^2 / (S kappa^2)): few iterations sag, they never fly. 0 turns the limit off
+    (benchmarks/stiffness_limit.py scans the unlimited springs)."""
 
     contact_damping_ratio: float = 10.0
     """[1] Damping ratio of that spring. Heavily over-damped (10) so a correction
@@ -150,7 +151,7 @@ class Settings:
     """[m] Smallest piece a Voronoi fracture may make, measured as the cube root of its
     volume. A body that would give smaller pieces stays whole: ``World.fracture`` raises,
     and a breakable body stops being breakable. Lower allows finer debris, which the
-    per-pair margin and slop caps (a quarter and a tenth of the smaller shape) still
+    per-pair margin and slop caps (a quarter and 2 % of the smaller shape) still
     handle, but every piece is one more body for the solver."""
 
     max_bodies: int = 1_000_000
@@ -171,6 +172,19 @@ class Settings:
 
                 limit = "a finite number >= 0" if top == math.inf else f"in [0, {top:.5g}]"
                 raise SandboxError(f"{name} must be {limit} (0 turns manifold reuse off), got {value!r}")
+        for name, low, high, closed in (("contact_stiffness_limit", 0.0, math.inf, True),
+                                        ("contact_deflection", 0.0, math.inf, True),
+                                        ("contact_load_time", 0.0, math.inf, False),
+                                        ("split_relaxation", 0.0, 2.0, False),
+                                        ("restitution_tolerance", 0.0, math.inf, False)):
+            value = getattr(self, name)
+            above = value >= low if closed else value > low
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and above
+                                                                                       and value < high):
+                from .errors import SandboxError
+
+                span = f"{'>=' if closed else '>'} {low:g}" + (f" and < {high:g}" if high != math.inf else "")
+                raise SandboxError(f"{name} must be a finite number {span}, got {value!r}")
 
     def manifold_reuse_bounds(self) -> tuple[float, float]:
         """(squared distance, sine of the half angle) the narrowphase compares against;

@@ -83,7 +83,9 @@ def row_omega(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f
     deflection = params[DEFLECTION] * size
     if deflection > 0.0 and load > 0.0:
         omega = ti.max(omega, ti.sqrt(load * k_true / deflection))
-    return ti.min(omega, params[STIFFNESS_LIMIT] * ti.sqrt(k_true / k_split) * params[INV_H])
+    if params[STIFFNESS_LIMIT] > 0.0:
+        omega = ti.min(omega, params[STIFFNESS_LIMIT] * ti.sqrt(k_true / k_split) * params[INV_H])
+    return omega
 
 
 @ti.func
