@@ -43,12 +43,13 @@ import math
 import taichi as ti
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
- UP_Z) = range(12)
+ UP_Z, GRAVITY_REACH) = range(13)
 PARAM_COUNT = 16
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
-deflection [1], the support average's blend per step [1], the step [s] and the up
-direction (against gravity; zero without gravity)."""
+deflection [1], the support average's blend per step [1], the step [s], the up
+direction (against gravity; zero without gravity) and the gap gravity closes in one step
+from rest, |g| dt^2 [m]."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
@@ -72,6 +73,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity):
     g = math.sqrt(sum(float(x) ** 2 for x in gravity))
     if g > 0.0:
         values[UP_X], values[UP_Y], values[UP_Z] = (-float(x) / g for x in gravity)
+    values[GRAVITY_REACH] = g * dt * dt
     return RowParams(values)
 
 
