@@ -62,6 +62,7 @@ def test_resting_box_carries_weight_per_step(solver):
     mass = 1000.0
     scene = Scene.from_dict(scene_dict([box_body([0, 0, 0.5])]))
     world = World(scene, solver=solver, iterations=20, arch="cpu")
+    world.track_impulses = True
     world.step(120)
     c = world.contacts()
     total = c["impulse"][:, 0].sum()
