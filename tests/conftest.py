@@ -36,6 +36,26 @@ def scene_dict(bodies, statics=(plane(),), gravity=(0.0, 0.0, -9.81), dt=1.0 / 6
     }
 
 
+MAX_TEST_WORKERS = 4
+"""Each test process holds its own Taichi runtime (~1.5-3 GB) and compiles its own kernels;
+past four the memory grows faster than the suite shortens."""
+
+
+def pytest_xdist_auto_num_workers(config):
+    return max(1, min(os.cpu_count() or 1, MAX_TEST_WORKERS))
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests sharing a module-scoped fixture (a bench run, a web server, a recorded scene) run
+    in one process, so the fixture is built once; every other test is spread on its own."""
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None:
+            continue
+        if any(d.scope == "module" for defs in info.name2fixturedefs.values() for d in defs):
+            item.add_marker(pytest.mark.xdist_group(item.module.__name__))
+
+
 def pytest_addoption(parser):
     parser.addoption("--stress", action="store_true", default=False,
                      help="run the whole stability matrix (every solver, 4 and 15 iterations), not the CI subset")
