@@ -7,7 +7,7 @@ import pytest
 
 from sandbox import Scene, World
 
-from .conftest import box_body, plane, scene_dict
+from tests.helpers import box_body, plane, scene_dict
 
 G = 9.81
 DT = 1.0 / 60.0

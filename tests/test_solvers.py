@@ -5,7 +5,7 @@ import pytest
 
 from sandbox import Scene, SimulationError, World
 
-from .conftest import box_body, plane, scene_dict
+from tests.helpers import box_body, plane, scene_dict
 
 PARALLEL = ["pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting"]
 DETERMINISTIC = ["pgs", "pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting"]
