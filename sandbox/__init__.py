@@ -9,7 +9,7 @@ all in Taichi kernels.
 These are the package's public names, the only ones ``web/`` uses (tests/test_import_graph.py
 checks it). The engine's names (``World``, ``SOLVERS``, ``Recorder``, the backend's) are
 imported on first use, so loading scenes (``sandbox.scene``) neither starts Taichi nor pulls in
-the engine (tests/scene/test_scene_loader.py checks it).
+the engine (tests/scene/test_loader.py checks it).
 """
 
 import importlib

@@ -3,8 +3,9 @@
 The body adjacency on hand-made contact buffers (every dynamic endpoint of every block
 listed once, per body, in sorted order; the split counts; scale x weight = 1), then one
 Jacobi sweep of point mass splitting on a box resting on a plane against the impulses
-worked out by hand: each corner is solved on a quarter of the box (a sub-body of mass
-m / 4), and the merged velocity is every impulse applied to the whole box.
+worked out by hand: each corner is solved on a share 1 / s of the box (s = 4 corners over
+the split relaxation, never below one sub-body), and the merged velocity is every impulse
+applied to the whole box.
 """
 
 import numpy as np
@@ -15,7 +16,7 @@ from sandbox import Scene, World
 from sandbox.bodies import Bodies
 from sandbox.contacts import Contacts
 from sandbox.solvers import mass_splitting as ms
-from sandbox.solvers.rows import RELAX
+from sandbox.solvers.rows import RELAX, Rows
 from tests.helpers import box_body, scene_dict
 
 BODIES = 40
@@ -59,8 +60,12 @@ def buffers():
     full[:MANIFOLDS] = mb
     c.m_body_b.from_numpy(full)
     c.manifold_count[None] = MANIFOLDS
+    # every block can act (mass_splitting._point_can_act): its points touch (separation 0)
+    c.sep.from_numpy(np.zeros(c.capacity, np.float32))
+    c.m_start.from_numpy(np.arange(c.pair_capacity, dtype=np.int32) % POINTS)
+    c.m_count.from_numpy(np.ones(c.pair_capacity, np.int32))
     blocks = {ms.PER_POINT: (a, b), ms.PER_MANIFOLD: (ma, mb)}
-    return ms.BlockScratch(c.capacity, 64), c, bodies, blocks
+    return ms.BlockScratch(c.capacity, 64), c, bodies, Rows(c.capacity), blocks
 
 
 KINDS = [ms.PER_POINT, ms.PER_MANIFOLD]
@@ -69,8 +74,8 @@ KIND_IDS = ["per-point", "per-manifold"]
 
 @pytest.mark.parametrize("kind", KINDS, ids=KIND_IDS)
 def test_adjacency_lists_every_dynamic_endpoint_once_in_sorted_order(buffers, kind):
-    scratch, c, bodies, blocks = buffers
-    ms.build_adjacency(scratch, c, bodies, kind, ms.MODE_SPLIT, 1.0)
+    scratch, c, bodies, rows, blocks = buffers
+    ms.build_adjacency(scratch, c, bodies, rows, kind, ms.MODE_SPLIT, 1.0)
     a, b = blocks[kind]
     start = scratch.adj_start.to_numpy()
     adj = scratch.adj.to_numpy()
@@ -89,10 +94,11 @@ def test_adjacency_lists_every_dynamic_endpoint_once_in_sorted_order(buffers, ki
 @pytest.mark.parametrize("kind", KINDS, ids=KIND_IDS)
 @pytest.mark.parametrize("omega", [1.0, 0.7, 1.6])
 def test_split_scale_is_the_block_count_over_omega_and_weight_its_inverse(buffers, kind, omega):
-    """Mass splitting: scale = n_b / omega, weight = omega / n_b (n_b = blocks touching body b);
-    scale x weight = 1, so an impulse reaches the merged body with its full mass."""
-    scratch, c, bodies, blocks = buffers
-    ms.build_adjacency(scratch, c, bodies, kind, ms.MODE_SPLIT, omega)
+    """Mass splitting: scale = max(1, n_b / omega), weight = 1 / scale (n_b = blocks touching
+    body b that can act); scale x weight = 1, so an impulse reaches the merged body with its
+    full mass."""
+    scratch, c, bodies, rows, blocks = buffers
+    ms.build_adjacency(scratch, c, bodies, rows, kind, ms.MODE_SPLIT, omega)
     a, b = blocks[kind]
     counts = np.bincount(np.concatenate([a, b]), minlength=BODIES)
     counts = np.maximum(counts, 1)  # a body in no block (ISOLATED at least) is not split
@@ -101,16 +107,17 @@ def test_split_scale_is_the_block_count_over_omega_and_weight_its_inverse(buffer
     scale = scratch.scale.to_numpy()[:BODIES]
     weight = scratch.weight.to_numpy()[:BODIES]
     # float32: one division each (half an ulp), their product within two ulps of 1
-    np.testing.assert_allclose(scale[dynamic], counts[dynamic] / omega, rtol=2 ** -23)
-    np.testing.assert_allclose(weight[dynamic], omega / counts[dynamic], rtol=2 ** -23)
+    split = np.maximum(counts[dynamic] / omega, 1.0)
+    np.testing.assert_allclose(scale[dynamic], split, rtol=2 ** -23)
+    np.testing.assert_allclose(weight[dynamic], 1.0 / split, rtol=2 ** -22)
     np.testing.assert_allclose(scale * weight, 1.0, rtol=2 ** -22)
 
 
 @pytest.mark.parametrize("omega", [1.0, 0.25])
 def test_jacobi_scale_is_one_global_factor(buffers, omega):
     """Projected Jacobi: the same schedule with one split factor 1 / omega for every body."""
-    scratch, c, bodies, _ = buffers
-    ms.build_adjacency(scratch, c, bodies, ms.PER_POINT, ms.MODE_JACOBI, omega)
+    scratch, c, bodies, rows, _ = buffers
+    ms.build_adjacency(scratch, c, bodies, rows, ms.PER_POINT, ms.MODE_JACOBI, omega)
     np.testing.assert_allclose(scratch.scale.to_numpy()[:BODIES], 1.0 / omega, rtol=2 ** -23)
     np.testing.assert_allclose(scratch.weight.to_numpy()[:BODIES], omega, rtol=2 ** -23)
 
@@ -143,17 +150,18 @@ def resting_box():
 @pytest.mark.parametrize("v0, w0", [((0.0, 0.0, -1.0), (0.0, 0.0, 0.0)), ((0.2, 0.0, -1.0), (2.5, 0.0, 0.0))],
                          ids=["falling", "falling-and-turning"])
 def test_one_sweep_on_a_resting_box_gives_the_impulses_worked_out_by_hand(resting_box, v0, w0):
-    """Corner q closes its approach speed u_q = -(v0 + w0 x r_q) . z alone on a quarter box:
-    lambda_q = max(u_q, 0) / (4 k_q) (k_q the corner's unit response on the whole box, the
-    split scales it by the 4 blocks). The merge weights each quarter's change by 1/4, which
-    makes it the whole box under all four impulses: v = v0 + sum(lambda) z / m,
+    """Corner q closes its approach speed u_q = -(v0 + w0 x r_q) . z alone on a share of the box:
+    lambda_q = max(u_q, 0) / (s k_q) (k_q the corner's unit response on the whole box, the
+    split scales it by s = 4 blocks / the split relaxation). The merge weights each share's
+    change by 1/s, which makes it the whole box under all four impulses: v = v0 + sum(lambda) z / m,
     w = w0 + I^-1 sum(r_q x lambda_q z). Friction rows add nothing: their cone is mu x 0."""
     world = resting_box
     buf = world.buf
     c = world.contacts(["point", "normal", "separation"])
     assert len(c["point"]) == 4 and np.all(c["separation"] < 0.0)
     np.testing.assert_allclose(c["normal"], np.tile([0.0, 0.0, -1.0], (4, 1)), atol=1e-6)  # from the box (a) to the plane
-    np.testing.assert_array_equal(buf.blocks.scale.to_numpy()[0], 4.0)  # the box is split in 4
+    split = max(1.0, 4.0 / world.settings.split_relaxation)  # the box is split in 4, over-relaxed
+    np.testing.assert_allclose(buf.blocks.scale.to_numpy()[0], split, rtol=2 ** -23)
     # back to the pose the rows were prepared at, with the chosen velocities and no impulses yet
     buf.bodies.pos[0] = [0.0, 0.0, HALF[2] - SINK]
     buf.bodies.rot[0] = [1.0, 0.0, 0.0, 0.0]
@@ -168,7 +176,7 @@ def test_one_sweep_on_a_resting_box_gives_the_impulses_worked_out_by_hand(restin
     np.testing.assert_allclose(np.abs(r[:, :2]), np.tile(HALF[:2], (4, 1)), atol=1e-6)  # the bottom corners
     v0, w0 = np.array(v0), np.array(w0)
     approach = -(v0 + np.cross(w0, r))[:, 2]  # [m/s] towards the plane
-    lam = np.maximum(approach, 0.0) / (4.0 * _corner_response(r[:, 0], r[:, 1]))
+    lam = np.maximum(approach, 0.0) / (split * _corner_response(r[:, 0], r[:, 1]))
     inertia = MASS * np.diag([HALF[1] ** 2 + HALF[2] ** 2, HALF[0] ** 2 + HALF[2] ** 2, HALF[0] ** 2 + HALF[1] ** 2]) / 3.0
     impulses = lam[:, None] * np.array([0.0, 0.0, 1.0])  # on the box, along -n
     v = v0 + impulses.sum(axis=0) / MASS
