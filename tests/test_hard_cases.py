@@ -18,6 +18,8 @@ KNOWN_FAILURES = {
     # Most of these are the deflection floor of a soft contact under a one-sweep schedule:
     # delta >= F K~ h^2 / (S kappa^2) (docs/method-notes.md, "Why low iteration counts blew up").
     ("heavy_on_light_1to100", "pgs@4"): "the 100 kg top sinks 29 mm at 4 iterations (criterion 20 mm)",
+    ("heavy_on_light_1to100", "pgs-colored@4"): "the 100 kg top sinks 29 mm at 4 iterations",
+    ("heavy_on_light_1to100", "jacobi@4"): "the 100 kg top sinks 115 mm at 4 iterations",
     ("heavy_on_light_1to100", "mass-splitting@4"): "the 100 kg top sinks 128 mm at 4 iterations",
     ("heavy_on_light_1to100", "block-mass-splitting@4"): "the top sinks 64 mm and walks 93 mm at 4 iterations",
     ("heavy_on_light_1to1000", "*"): "PGS family: the column tips at 4 iterations, the 1000 kg top sinks 22 mm "
@@ -26,17 +28,18 @@ KNOWN_FAILURES = {
     ("deep_overlap_30pct", "mass-splitting"): "peak separation speed 5.4 m/s at 15 iterations (criterion 5 m/s); "
                                               "21 mm still overlapping after 3 s at 4",
     ("deep_overlap_30pct", "block-mass-splitting@4"): "10.5 mm still overlapping after 3 s at 4 iterations",
-    ("friction_arch", "jacobi@4"): "the arch sags 0.14 m at 4 iterations",
+    ("deep_overlap_30pct", "jacobi@4"): "11 mm still overlapping after 3 s at 4 iterations",
+    ("friction_arch", "jacobi@4"): "the arch collapses at 4 iterations",
     ("friction_arch", "mass-splitting@4"): "the arch collapses at 4 iterations (a voussoir flies at 12.7 m/s)",
     ("friction_arch", "block-mass-splitting@4"): "a voussoir slips 25 mm at 4 iterations",
     ("leaning_planks", "jacobi"): "the card house collapses",
     ("leaning_planks", "mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 0.77 m)",
     ("leaning_planks", "block-mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 1.6 m)",
     ("projectile_200ms_thin_wall", "jacobi"): "no tunnelling, but the under-relaxed sphere rebounds at ~40 m/s",
-    ("stack_20", "jacobi@4"): "sinks ~4 cm at 4 iterations",
+    ("stack_20", "jacobi@4"): "the column sinks 37 mm at 4 iterations",
     ("stack_20", "mass-splitting@4"): "the column sinks 40 mm at 4 iterations (criterion 10 mm)",
     ("stack_20", "block-mass-splitting@4"): "the column topples at 4 iterations (peak 16 m/s)",
-    ("stack_20", "pgs-colored@4"): "the top sways up to ~37 mm at 4 iterations",
+    ("stack_20", "pgs-colored@4"): "the column topples at 4 iterations",
     # serial PGS's order asymmetry rocks the column with a period of ~8 s (a slow, decaying
     # rocking mode); at 4 iterations the soft column is an inverted pendulum and falls
     ("stack_20", "pgs"): "the top sways up to 30 mm at 15 iterations (period ~8 s), 0.62 m at 4",
