@@ -36,6 +36,13 @@ def _blocks(seed: int, count: int):
     return a.astype(np.int32), b.astype(np.int32)
 
 
+def _fill(field, values, capacity):
+    """The field's first entries from ``values``, the rest zero."""
+    full = np.zeros(capacity, np.int32)
+    full[:len(values)] = values
+    field.from_numpy(full)
+
+
 @pytest.fixture(scope="module")
 def buffers():
     bodies = Bodies(64)
@@ -47,18 +54,12 @@ def buffers():
                    "ang_vel": np.zeros((BODIES, 3))})
     c = Contacts(128, 4)
     a, b = _blocks(1, POINTS)
-    full = np.zeros(c.capacity, np.int32)
-    full[:POINTS] = a
-    c.body_a.from_numpy(full)
-    full[:POINTS] = b
-    c.body_b.from_numpy(full)
+    _fill(c.body_a, a, c.capacity)
+    _fill(c.body_b, b, c.capacity)
     c.count[None] = POINTS
     ma, mb = _blocks(2, MANIFOLDS)
-    full = np.zeros(c.pair_capacity, np.int32)
-    full[:MANIFOLDS] = ma
-    c.m_body_a.from_numpy(full)
-    full[:MANIFOLDS] = mb
-    c.m_body_b.from_numpy(full)
+    _fill(c.m_body_a, ma, c.pair_capacity)
+    _fill(c.m_body_b, mb, c.pair_capacity)
     c.manifold_count[None] = MANIFOLDS
     # every block can act (mass_splitting._point_can_act): its points touch (separation 0)
     c.sep.from_numpy(np.zeros(c.capacity, np.float32))
