@@ -7,15 +7,14 @@ all in Taichi kernels.
     world.state()["position"]
 
 These are the package's public names, the only ones ``web/`` uses (tests/test_import_graph.py
-checks it). ``World`` and ``SOLVERS`` are imported on first use, so the scene layer
-(``sandbox.scene``) stays usable without starting Taichi; everything else here is pure Python
-and numpy.
+checks it). The engine's names (``World``, ``SOLVERS``, ``Recorder``, the backend's) are
+imported on first use, so loading scenes (``sandbox.scene``) neither starts Taichi nor pulls in
+the engine (tests/scene/test_loader.py checks it).
 """
 
-from .backend import init as init_backend
-from .backend import resolve_arch
+import importlib
+
 from .errors import CapacityError, SandboxError, SceneError, SimulationError
-from .recording import Recorder
 from .scene import (EFFECTS, IDENTITY, BodySpec, EventSpec, GeneratorError, Material, Scene, ShapeSpec, quat_to_matrix,
                     rain, resolve_scene, shipped_scenes)
 from .settings import Settings
@@ -35,13 +34,18 @@ __all__ = [
 ]
 
 
+# public name -> (module, attribute), imported on first use
+_ENGINE_NAMES = {
+    "World": (".world", "World"),
+    "SOLVERS": (".solvers", "SOLVERS"),
+    "Recorder": (".recording", "Recorder"),
+    "init_backend": (".backend", "init"),
+    "resolve_arch": (".backend", "resolve_arch"),
+}
+
+
 def __getattr__(name):
-    if name == "World":
-        from .world import World
-
-        return World
-    if name == "SOLVERS":
-        from .solvers import SOLVERS
-
-        return SOLVERS
+    if name in _ENGINE_NAMES:
+        module, attribute = _ENGINE_NAMES[name]
+        return getattr(importlib.import_module(module, __name__), attribute)
     raise AttributeError(f"module 'sandbox' has no attribute {name!r}")

@@ -52,6 +52,8 @@ class Bodies:
         self.good_rot = ti.Vector.field(4, ti.f32, c)
         self.good_lin_vel = ti.Vector.field(3, ti.f32, c)
         self.good_ang_vel = ti.Vector.field(3, ti.f32, c)
+        self.support = ti.field(ti.f32, c)  # [N] averaged force holding the body up (contact_spring.py)
+        self.support_points = ti.field(ti.i32, c)  # contact points holding it up, last step
 
     def upload(self, arrays: dict[str, np.ndarray]) -> None:
         """Write host arrays (N rows each) into the first N slots. Dynamic bodies keep
@@ -70,6 +72,8 @@ class Bodies:
             full[:n] = value
             field.from_numpy(full.astype(np.float32))
         self.count[None] = n
+        self.support.fill(0.0)  # a rebuilt world learns its loads again (a few steps)
+        self.support_points.fill(0)
         update_world_inertia(self, EVERY)
         save_good_state(self, EVERY)
 

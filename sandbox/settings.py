@@ -32,19 +32,46 @@ class Settings:
     contact_hertz: float = 30.0
     """[Hz] Stiffness of the position correction: penetration beyond the slop is
     removed like a spring of this frequency (soft contacts, Box2D v3 / Catto's
-    "soft step"), capped at a quarter of the substep rate so it stays stable.
-    A scene may set its own (``[world] contact_hertz``). Higher pushes overlaps
-    out faster and tall stacks sink and sway less, but the Jacobi-type schedules
-    (mass splitting) lag a stiff spring and start to ring: measured on the
-    210-box pyramid at 15 iterations, 30 Hz is quiet for every solver while at
-    60 Hz per-point mass splitting vibrates; a 20-box stack needs ~60 Hz to
-    stand under serial PGS (at 30 Hz it sinks ~10 mm per contact and slowly
-    tips). 30 Hz is Box2D v3's default."""
+    "soft step"), relative to the contact's effective mass. A scene may set its own
+    (``[world] contact_hertz``). Higher pushes overlaps out faster and lets stacks
+    sink less (a contact under a load F deflects F K / omega^2, K its unit response).
+    Each contact row is capped at what its schedule can carry stably
+    (``contact_stiffness_limit``) and stiffened where its load would press it further
+    than ``contact_deflection`` allows; 30 Hz is Box2D v3's default."""
+
+    contact_stiffness_limit: float = 0.6
+    """[1] kappa of the stability limit every contact row's spring is capped at:
+    omega h <= kappa sqrt(S K / K~), with h the substep, S the sweeps per substep
+    (biased + relax), K the row's unit response and K~ the one the schedule divides by
+    (K for PGS, about n_b K for mass splitting). Why: the soft spring is only damped when
+    the row solve converges within the substep; a sweep that steps by 1 / K~ lags the
+    spring by ~K~ / gamma sweeps, and past this limit the lag feeds energy into the
+    structure's slowest modes (docs/method-notes.md, "Why low iteration counts blew up":
+    measured onset kappa ~0.7 for PGS, mass splitting and block mass splitting alike on
+    the 210-box pyramid). Higher is stiffer and closer to that onset; lower sags more.
+    The limit also bounds every stable one-sweep schedule's static deflection from below
+    (F K~ h^2 / (S kappa^2)): few iterations sag, they never fly. 0 turns the limit off
+    (benchmarks/stiffness_limit.py scans the unlimited springs)."""
 
     contact_damping_ratio: float = 10.0
     """[1] Damping ratio of that spring. Heavily over-damped (10) so a correction
     never overshoots; together with the regularisation it brings, this is what
     keeps warm-started stacks from ringing when the solver has not converged."""
+
+    contact_deflection: float = 0.005
+    """[1] Largest static deflection a contact should show under its load, as a fraction
+    of the smaller shape's bounding radius: a contact that holds up a body whose support
+    force F (with what it carries, shared among its support points) would press it further
+    at ``contact_hertz`` gets a stiffer spring, omega^2 = F K / (this x radius), up to the
+    stability limit (solvers/contact_spring.py). Without it a spring follows the lighter
+    body's mass, so a 1000 kg box on a 1 kg box sank ~30 cm, and not size, so 1 mm cubes
+    sank ~0.8 mm. 0.005 leaves equal-mass piles at ``contact_hertz`` (a pyramid's bottom row
+    deflects ~3 mm of a 0.87 m radius). 0 turns load stiffening off."""
+
+    contact_load_time: float = 0.25
+    """[s] Time constant of the support-force average that ``contact_deflection`` reads, so
+    that a bounce or an impact does not stiffen the spring it is acting through. Longer
+    reacts more slowly to a new load (a heavy body landing sinks further first)."""
 
     max_push_speed: float = 3.0
     """[m/s] Cap on the separation speed the position bias may request, so a
@@ -53,6 +80,12 @@ class Settings:
     restitution_threshold: float = 1.0
     """[m/s] Approach speed below which restitution is ignored, so resting
     contacts do not bounce forever."""
+
+    restitution_tolerance: float = 1e-3
+    """[m/s] The restitution pass repeats its sweep until no bouncing contact's normal
+    speed is further than this from -e times its approach speed, so that every schedule
+    gives the same bounce (a single Jacobi-type sweep gave a 5 m/s cube 0.7 m/s back).
+    Larger stops sooner with a bounce that much short or long."""
 
     warm_start: float = 1.0
     """[1] Fraction of last step's matched impulses applied before iterating.
@@ -97,6 +130,18 @@ class Settings:
     ``"per-substep"`` on CUDA. A world with its profiler on, or recording residuals, always
     goes stage by stage."""
 
+    split_relaxation: float = 1.8
+    """[1] Relaxation omega of per-point mass splitting: each split response is divided by it
+    (over-relaxation; never below one sub-body, mass_splitting.py). The convergence proof of
+    mass splitting holds for 0 < omega < 2 (method.md 1.7), and per-point splitting counts
+    every corner of a face as a sub-body although the four corners lift a body together
+    and turn it apart, so it steps short; 1.8 steps further without overshooting: on the
+    210-box pyramid at 4 iterations the sag fell from 0.49 m to 0.28 m, at 15 iterations
+    the resting energy from 1.4e-8 to 5.6e-10 J (docs/method-notes.md). Block mass
+    splitting stays at 1: its manifolds rarely push a body one way (measured: over-relaxed,
+    its friction arch collapsed). The ``relaxation`` solver option overrides both; 1 is the
+    paper's plain average."""
+
     jacobi_relaxation: float = 0.25
     """[1] Relaxation factor omega of projected Jacobi. Plain Jacobi (1.0)
     overshoots by the number of rows coupled through a body; stacks need
@@ -106,7 +151,7 @@ class Settings:
     """[m] Smallest piece a Voronoi fracture may make, measured as the cube root of its
     volume. A body that would give smaller pieces stays whole: ``World.fracture`` raises,
     and a breakable body stops being breakable. Lower allows finer debris, which the
-    per-pair margin and slop caps (a quarter and a tenth of the smaller shape) still
+    per-pair margin and slop caps (a quarter and 2 % of the smaller shape) still
     handle, but every piece is one more body for the solver."""
 
     sleep_linear_speed: float = 0.05
@@ -149,6 +194,19 @@ class Settings:
 
                 limit = "a finite number >= 0" if top == math.inf else f"in [0, {top:.5g}]"
                 raise SandboxError(f"{name} must be {limit} (0 turns manifold reuse off), got {value!r}")
+        for name, low, high, closed in (("contact_stiffness_limit", 0.0, math.inf, True),
+                                        ("contact_deflection", 0.0, math.inf, True),
+                                        ("contact_load_time", 0.0, math.inf, False),
+                                        ("split_relaxation", 0.0, 2.0, False),
+                                        ("restitution_tolerance", 0.0, math.inf, False)):
+            value = getattr(self, name)
+            above = value >= low if closed else value > low
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and above
+                                                                                       and value < high):
+                from .errors import SandboxError
+
+                span = f"{'>=' if closed else '>'} {low:g}" + (f" and < {high:g}" if high != math.inf else "")
+                raise SandboxError(f"{name} must be a finite number {span}, got {value!r}")
 
     def manifold_reuse_bounds(self) -> tuple[float, float]:
         """(squared distance, sine of the half angle) the narrowphase compares against;

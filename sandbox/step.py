@@ -9,7 +9,8 @@ The step, stage by stage (names = profile keys = report keys, profile.STAGES):
    ``integrate_velocities`` (gravity), ``iterate`` (warm start + one biased sweep of the
    chosen schedule), ``integrate_positions`` (symplectic Euler, conservative rotation,
    finite guard), ``relax`` (one rigid sweep without position bias)
-5. ``relax``        restitution pass, impulses stored for the next step
+5. ``relax``        restitution pass (repeated until the bounce converges, for every schedule),
+   impulses stored for the next step
 
 Python only orchestrates. With the profiler off, the once-per-step stages run in three
 launches (``step_kernels.py``: state save + broadphase + narrowphase, then rows + matching +
@@ -41,6 +42,9 @@ from .errors import CapacityError, SimulationError
 from .solvers.schedule import Loop, Schedule
 
 MAX_GROWTH_RETRIES = 6
+RESTITUTION_MAX_SWEEPS = 256
+"""[1] Most restitution sweeps a step may run: projected Jacobi (relaxation 0.25) needs ~50 to
+bring a 5 m/s bounce within ``Settings.restitution_tolerance``; past this the bounce stays short."""
 
 
 @dataclass(frozen=True)
@@ -52,6 +56,7 @@ class Controls:
     gravity: np.ndarray  # [m/s^2], shape (3,), float32
     friction: bool  # compile-time: friction rows exist only if asked for
     restitution: bool
+    track_impulses: bool  # each substep's impulses summed into the step's (World.track_impulses)
     record_residuals: bool  # a residual read after every biased sweep (forces the staged path)
     arch: str
     sleeping: bool = False  # compile-time: resting islands sleep (sleep.py), the loops visit awake items only
@@ -73,7 +78,8 @@ class Stepper:
         from .integrate import check_velocities
         from .persistence import match_contacts, store_contacts
         from .sleep import after_step, rest_arguments
-        from .solvers.rows import RESTITUTION, prepare_rows, soft_contact_coefficients
+        from .solvers.contact_spring import row_params
+        from .solvers.rows import prepare_rows
 
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
         awake = self.edits.awake_set(c.sleeping)
@@ -88,26 +94,24 @@ class Stepper:
         self.residual_history = []
         b = self._collide_growing(fused, h, c.sleeping)
         awake = self.edits.awake_set(c.sleeping)  # the buffers may have grown
-        if watch:
-            from .impact import clear_bodies, clear_points
+        if watch and first:
+            from .impact import clear_bodies
 
-            if first:
-                clear_bodies(b.impacts, b.bodies)
-            clear_points(b.impacts, b.contacts)
+            clear_bodies(b.impacts, b.bodies)
+        bounce = c.restitution and self.edits.host.has_restitution
         with p.stage("prepare"):
-            bias_rate, softness = soft_contact_coefficients(h_sub, s.contact_hertz, s.contact_damping_ratio)
+            params = row_params(s, h_sub, s.sweeps, h, c.gravity)
             if fused:
                 blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
-                step_kernels.prepare_step(b.rows, b.contacts, b.bodies, b.history, blk, 1.0 / h_sub, bias_rate,
-                                          softness, s.max_push_speed, s.restitution_threshold, s.match_distance,
+                step_kernels.prepare_step(b.rows, b.contacts, b.bodies, b.history, blk, params, s.match_distance,
                                           s.warm_start / k, kind, mode, omega, scaled)
                 c.schedule.color(b, step_count)
             else:
-                prepare_rows(b.rows, b.contacts, b.bodies, 1.0 / h_sub, bias_rate, softness, s.max_push_speed,
-                             s.restitution_threshold)
+                prepare_rows(b.rows, b.contacts, b.bodies, params)
                 match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
                 c.schedule.prepare(b, s, step_count)
-        loop = Loop(b, c.friction, s.warm_start > 0.0, watch, gravity, h_sub, k, s.sweeps, awake)
+        track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
+        loop = Loop(b, c.friction, s.warm_start > 0.0, track, gravity, h_sub, k, s.sweeps, awake)
         staged = p.enabled or c.record_residuals  # a timer per stage, a residual read per sweep
         launch = "per-stage" if staged else c.schedule.launch(s, c.arch)
         if launch == "per-stage":
@@ -118,15 +122,18 @@ class Stepper:
         if watch:
             from .impact import reduce_manifolds
 
-            reduce_manifolds(b.impacts, b.contacts)
+            reduce_manifolds(b.impacts, b.contacts, b.rows)
         with p.stage("relax"):
-            if c.restitution and self.edits.host.has_restitution:
-                c.schedule.sweep(b, awake, RESTITUTION, c.friction)
+            if bounce:
+                c.schedule.restitution(b, awake, c.friction, s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
             if fused:
-                step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, k, awake,
-                                         *rest_arguments(h, s))
+                step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, b.blocks,
+                                         c.schedule.kind, k, awake, *rest_arguments(h, s))
             else:
+                from .solvers.mass_splitting import update_support
+
                 check_velocities(b.bodies, b.errors, awake)
+                update_support(b.blocks, b.contacts, b.rows, b.bodies, awake, c.schedule.kind)
                 store_contacts(b.history, b.contacts, b.rows, b.shapes, k, awake)
         self._check_errors(b, step_count)
         if c.sleeping:
@@ -173,9 +180,8 @@ class Stepper:
         """The iteration loop a launch per phase, each in its stage. With warm starting, gravity
         rides on the warm-start pass ("iterate"), and for the Jacobi family both ride on the
         previous substep's last relax sweep."""
-        from .impact import accumulate_points
         from .integrate import integrate_positions, integrate_velocities
-        from .solvers.rows import BIASED, RELAX
+        from .solvers.rows import BIASED, RELAX, add_step_impulses
 
         b, p, k, sweeps, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.awake
         fold = schedule.folds_warm_start(loop.warm)
@@ -198,8 +204,8 @@ class Stepper:
                 for j in range(sweeps):
                     then_warm = int(fold and i < k - 1 and j == sweeps - 1)
                     schedule.sweep(b, awake, RELAX, loop.friction, then_warm, loop.gravity, loop.h)
-            if loop.watch:
-                accumulate_points(b.impacts, b.contacts, b.rows)
+            if loop.track:
+                add_step_impulses(b.rows, b.contacts)
 
     def _check_errors(self, b, step_count: int) -> None:
         """The step's error bits as a SimulationError, the world back at its last good state."""

@@ -17,7 +17,8 @@ from .contacts import collide_pairs_loops
 from .integrate import BIG, check_velocities_loops
 from .persistence import match_contact, store_contacts_loops
 from .sleep import rest_and_label_loops
-from .solvers.mass_splitting import build_adjacency_loops
+from .solvers.contact_spring import RowParams
+from .solvers.mass_splitting import build_adjacency_loops, update_support_loops
 from .solvers.rows import prepare_row, respond_row, set_row_params
 
 
@@ -38,27 +39,30 @@ def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template
 
 @ti.kernel
 def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), hist: ti.template(),
-                 blk: ti.template(), inv_h: ti.f32, bias_rate: ti.f32, softness: ti.f32,
-                 max_push: ti.f32, restitution_threshold: ti.f32, match_distance: ti.f32, warm_factor: ti.f32,
+                 blk: ti.template(), params: RowParams, match_distance: ti.f32, warm_factor: ti.f32,
                  kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template()):
-    """The schedule's adjacency, then rows, warm-start matching and row responses in one
-    loop over the points (each point's three stages read only its own earlier results and
-    the adjacency's mass scales: the bits of the three separate loops, one dispatch)."""
-    set_row_params(rows, inv_h, bias_rate, softness, max_push, restitution_threshold)
-    build_adjacency_loops(blk, c, bodies, kind, mode, omega)
+    """Rows and warm-start matching in one loop over the points, the schedule's adjacency
+    (its split counts read both), then the row responses and springs (which read the
+    split scales): each stage reads only its own point's earlier results, so these are
+    the bits of the separate launches, in one dispatch."""
+    set_row_params(rows, params)
     for q in range(c.count[None]):
         prepare_row(rows, c, bodies, q)
         match_contact(hist, c, rows, match_distance, warm_factor, q)
+    build_adjacency_loops(blk, c, bodies, rows, kind, mode, omega)
+    for q in range(c.count[None]):
         respond_row(rows, c, bodies, blk.scale, split, q)
 
 
 @ti.kernel
 def finish_step(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                shapes: ti.template(), err: ti.template(), substeps: ti.i32, awake: ti.template(), h: ti.f32,
-                lin: ti.f32, ang: ti.f32, rest_time: ti.f32):
-    """Velocity check and the contact store for the next step's warm start; in a sleeping
-    world also the rest timers and islands (sleep.rest_and_label_loops, its scalars after ``awake``)."""
+                shapes: ti.template(), err: ti.template(), blk: ti.template(), kind: ti.template(), substeps: ti.i32,
+                awake: ti.template(), h: ti.f32, lin: ti.f32, ang: ti.f32, rest_time: ti.f32):
+    """Velocity check, the bodies' support loads and the contact store for the next step; in a
+    sleeping world also the rest timers and islands (sleep.rest_and_label_loops, its scalars
+    after ``awake``)."""
     check_velocities_loops(bodies, err, awake)
+    update_support_loops(blk, c, rows, bodies, awake, kind)
     store_contacts_loops(hist, c, rows, shapes, substeps, awake)
     if ti.static(awake.compact):
         rest_and_label_loops(awake, c, bodies, h, lin, ang, rest_time, True)

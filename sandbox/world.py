@@ -45,6 +45,10 @@ class World:
         self.gravity = np.asarray(scene.world.gravity, dtype=np.float32)
         self.profiler = Profiler(profile)
         self.step_count = 0
+        self.track_impulses = False
+        """When True, every step sums its substeps' impulses (one more pass over the contacts per
+        substep), which ``contacts()["impulse"]`` reports. Restitution and breakable bodies sum
+        them anyway."""
         self.record_residuals = False
         """When True, ``residual_history`` holds the RMS LCP residual [m/s] after every biased
         sweep of the last step (one device read per sweep: for convergence plots, not speed)."""
@@ -239,7 +243,7 @@ class World:
                 self.apply_event(self._pending.pop(0))
             watch = self._edits.watch_impacts and self.auto_fracture
             controls = Controls(self._schedule, self.iterations, self.gravity, self.friction, self.restitution,
-                                self.record_residuals, self.arch, self.sleeping)
+                                self.track_impulses, self.record_residuals, self.arch, self.sleeping)
             for s in range(self.substeps):
                 self._stepper.substep(controls, h, watch, first=s == 0, step_count=self.step_count)
             if watch:
@@ -304,7 +308,9 @@ class World:
     def contacts(self, fields=None) -> dict[str, np.ndarray]:
         """This step's contact points: body_a, body_b, point (world) [m], normal (a to b),
         separation at the step start [m], impulse over the step (normal, tangent1, tangent2)
-        [N s] and manifold index. ``fields``: only these keys (fewer device copies)."""
+        [N s; the sum of the substeps' impulses, available after a step with
+        ``track_impulses`` on] and manifold index. ``fields``: only these keys (fewer device
+        copies); without ``fields`` the impulse is left out unless it is tracked."""
         c, r = self.buf.contacts, self.buf.rows
         n = int(c.count[None])
         read = {
@@ -313,10 +319,15 @@ class World:
             "point": lambda: c.point.to_numpy()[:n],
             "normal": lambda: c.normal.to_numpy()[:n],
             "separation": lambda: c.sep.to_numpy()[:n],
-            "impulse": lambda: r.lam.to_numpy()[:n] * self.iterations,  # per substep -> per step
+            "impulse": lambda: r.lam_step.to_numpy()[:n],
             "manifold": lambda: c.manifold.to_numpy()[:n],
         }
-        return {k: read[k]() for k in (fields or read)}
+        if fields is None:
+            fields = [k for k in read if k != "impulse" or self.track_impulses]
+        elif "impulse" in fields and not self.track_impulses:
+            raise SandboxError("contact impulses are summed only while World.track_impulses is True: set it "
+                               "before stepping")
+        return {k: read[k]() for k in fields}
 
     def timing_ms(self) -> dict[str, float]:
         return self.profiler.mean_ms()

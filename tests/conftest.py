@@ -1,8 +1,14 @@
-"""Shared fixtures: Taichi runs once per test process, on the CPU (CI has no GPU)."""
+"""Shared fixtures: Taichi runs once per test process, on the CPU (CI has no GPU).
+
+Plain helpers (scene dicts, state comparisons) live in tests/helpers.py; the names below are
+re-exported for test files that import them from here.
+"""
 
 import os
 
 import pytest
+
+from tests.helpers import box_body, plane, scene_dict  # noqa: F401  (re-exported, see above)
 
 os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
 
@@ -14,31 +20,31 @@ def taichi_cpu():
     return backend.init(os.environ.get("SANDBOX_TEST_ARCH", "cpu"))
 
 
-def box_body(position, half=(0.5, 0.5, 0.5), mass=None, density=1000.0, **extra):
-    body = {"shape": "box", "half_extents": list(half), "position": list(position), **extra}
-    if mass is not None:
-        body["mass"] = mass
-    else:
-        body["density"] = density
-    return body
+MAX_TEST_WORKERS = 4
+"""Each test process holds its own Taichi runtime (~1.5-3 GB) and compiles its own kernels;
+past four the memory grows faster than the suite shortens."""
 
 
-def plane(normal=(0.0, 0.0, 1.0), offset=0.0, friction=0.5):
-    return {"shape": "plane", "normal": list(normal), "offset": offset, "friction": friction}
+def pytest_xdist_auto_num_workers(config):
+    return max(1, min(os.cpu_count() or 1, MAX_TEST_WORKERS))
 
 
-def scene_dict(bodies, statics=(plane(),), gravity=(0.0, 0.0, -9.81), dt=1.0 / 60.0, solver="pgs", iterations=10):
-    return {
-        "world": {"gravity": list(gravity), "dt": dt, "substeps": 1},
-        "solver": {"name": solver, "iterations": iterations},
-        "static": list(statics),
-        "body": list(bodies),
-    }
+@pytest.hookimpl(tryfirst=True)  # before xdist reads the groups off the marks
+def pytest_collection_modifyitems(config, items):
+    """Tests sharing a module-scoped fixture (a bench run, a web server, a recorded scene) run
+    in one process, so the fixture is built once; every other test is spread on its own."""
+    for item in items:
+        info = getattr(item, "_fixtureinfo", None)
+        if info is None:
+            continue
+        if any(d.scope == "module" for defs in info.name2fixturedefs.values() for d in defs):
+            item.add_marker(pytest.mark.xdist_group(item.module.__name__))
 
 
 def pytest_addoption(parser):
     parser.addoption("--stress", action="store_true", default=False,
-                     help="run the whole stability matrix (every solver, 4 and 15 iterations), not the CI subset")
+                     help="run the long checks too: the whole hard-case matrix (every solver, 4 and 15 "
+                          "iterations) and the long runs")
 
 
 @pytest.fixture(scope="session")

@@ -7,7 +7,7 @@ import pytest
 
 from sandbox import Scene, World
 
-from .conftest import box_body, plane, scene_dict
+from tests.helpers import box_body, plane, scene_dict
 
 G = 9.81
 DT = 1.0 / 60.0
@@ -62,6 +62,7 @@ def test_resting_box_carries_weight_per_step(solver):
     mass = 1000.0
     scene = Scene.from_dict(scene_dict([box_body([0, 0, 0.5])]))
     world = World(scene, solver=solver, iterations=20, arch="cpu")
+    world.track_impulses = True
     world.step(120)
     c = world.contacts()
     total = c["impulse"][:, 0].sum()

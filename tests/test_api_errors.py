@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from sandbox import SandboxError, Scene, World
 
-from .conftest import box_body, scene_dict
+from tests.helpers import box_body, scene_dict
 
 BAD_NUMBERS = st.sampled_from([math.nan, math.inf, -math.inf, "x", None, [1.0, 2.0], [[1, 2, 3]], True])
 

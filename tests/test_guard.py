@@ -5,7 +5,7 @@ import pytest
 
 from sandbox import Scene, Settings, SimulationError, World
 
-from .conftest import box_body, scene_dict
+from tests.helpers import box_body, scene_dict
 
 
 def _failing_step_keeps_state(world) -> str:

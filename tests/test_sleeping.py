@@ -8,7 +8,7 @@ from sandbox import Scene, World
 from sandbox.recording import Recorder, replay
 from sandbox.scene.spec import EventSpec
 
-from .conftest import box_body, scene_dict
+from tests.helpers import box_body, scene_dict
 
 COLUMNS = (-3.0, 0.0, 3.0)  # three columns of three unit boxes, 2 m apart: three islands
 SLEEPING = ["friction", "restitution", "sleeping"]

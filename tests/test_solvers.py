@@ -5,7 +5,7 @@ import pytest
 
 from sandbox import Scene, SimulationError, World
 
-from .conftest import box_body, plane, scene_dict
+from tests.helpers import box_body, plane, scene_dict
 
 PARALLEL = ["pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting"]
 DETERMINISTIC = ["pgs", "pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting"]
@@ -35,6 +35,7 @@ def _one_step(bodies, solver, sweeps):
 
     scene = Scene.from_dict(scene_dict(bodies))
     world = World(scene, solver=solver, iterations=1, arch="cpu", settings=Settings(warm_start=0.0, sweeps=sweeps))
+    world.track_impulses = True
     world.step(1)
     c = world.contacts()
     per_manifold = np.zeros((c["manifold"].max() + 1, 3))
@@ -118,6 +119,7 @@ def test_two_runs_are_bitwise_identical(solver):
 def test_set_solver_keeps_world_and_warm_start():
     scene = Scene.from_dict(scene_dict([box_body([0, 0, 0.5 + i]) for i in range(5)]))
     world = World(scene, solver="pgs", iterations=10, arch="cpu")
+    world.track_impulses = True
     world.step(60)
     before = world.state()["position"].copy()
     lam_before = world.contacts()["impulse"][:, 0].sum()

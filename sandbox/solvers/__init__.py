@@ -71,11 +71,19 @@ class SolverInfo:
         return self.combine == "split"
 
     @property
-    def default_relaxation(self) -> float | None:
-        """Relaxation when the ``relaxation`` option is not given. Mass splitting: 1, the plain
-        average, which converges (method.md 1.7). Jacobi: None, i.e. ``Settings.jacobi_relaxation``
-        (plain Jacobi overshoots). In place: 1, since only the warm start uses the merge."""
-        return None if self.combine == "jacobi" else 1.0
+    def relaxation_setting(self) -> str | None:
+        """The ``Settings`` field that gives the merge's relaxation when the ``relaxation``
+        option is not given: ``split_relaxation`` for per-point mass splitting (over-relaxed
+        within the convergence proof's 0 < omega < 2: it counts every corner of a face as a
+        sub-body, a slack over-relaxation takes back), ``jacobi_relaxation`` for projected
+        Jacobi (plain Jacobi overshoots). None, i.e. 1, for block mass splitting (a body's
+        manifolds mostly push it different ways: no slack to take back, and an over-relaxed
+        friction arch collapsed) and in place (only the warm start uses the merge)."""
+        if self.combine == "jacobi":
+            return "jacobi_relaxation"
+        if self.combine == "split" and self.block == "point":
+            return "split_relaxation"
+        return None
 
     @property
     def needs_coloring(self) -> bool:

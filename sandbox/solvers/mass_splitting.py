@@ -12,11 +12,22 @@ fixed order. No float atomics, so CPU runs are bitwise repeatable.
 
 Per body, ``scale`` multiplies inverse mass and inertia inside a block and ``weight``
 multiplies the velocity change written to the slot:
-* mass splitting (``MODE_SPLIT``): scale = n_b (blocks touching b), weight = 1/n_b: the
-  body is split into n_b sub-bodies of mass m / n_b, and the merge is the average of the
-  n_b sub-body velocities, i.e. every impulse applied with the full mass; with
-  over-relaxation omega (0 < omega < 2 keeps the convergence proof, method.md 1.7)
-  scale = n_b / omega and weight = omega / n_b;
+* mass splitting (``MODE_SPLIT``): scale = n_b, weight = 1/n_b: the body is split into n_b
+  sub-bodies of mass m / n_b, and the merge is the average of the n_b sub-body velocities,
+  i.e. every impulse applied with the full mass; with over-relaxation omega
+  (``Settings.split_relaxation``; 0 < omega < 2 keeps the convergence proof, method.md 1.7)
+  scale = max(1, n_b / omega) and weight = 1 / scale: the Cauchy-Schwarz bound n_b assumes
+  all of a body's contacts push it one way; over-relaxation takes back part of that slack,
+  but a body with one block has none to take (with scale < 1 its lone block would
+  overshoot, measured: a bounce 58 % too high). n_b counts the blocks touching b that can
+  act this step: touching or penetrating, carrying a warm-start impulse, or closing their
+  gap within the step at the approach speed they start with plus what gravity adds (|g| dt^2;
+  without that margin a card landing on the card house was undercounted and the
+  over-relaxed split blew it up at step 3, measured). PhysX recounts active
+  blocks too). A speculative contact a body's neighbour keeps 2 cm away would otherwise
+  split the body as much as one carrying its weight: a 210-box pyramid's boxes counted
+  their idle side contacts, and every sweep moved them that much less (the split
+  schedules' stiffness limit scales with 1 / sqrt(n_b): solvers/contact_spring.py);
 * projected Jacobi with relaxation omega (``MODE_JACOBI``): scale = 1/omega, weight =
   omega, i.e. mass splitting with one global split factor 1/omega instead of each
   body's own count n_b. The step becomes lambda += omega * dlambda (K scaled by
@@ -37,6 +48,7 @@ import taichi as ti
 from ..awake import body_id, body_total
 from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
+from .contact_spring import GRAVITY_REACH, INV_H, LOAD_BLEND, RESTITUTION_THRESHOLD, STEP_DT, support_push
 from .rows import point_impulse, solve_point
 
 vec3 = ti.math.vec3
@@ -60,6 +72,8 @@ class BlockScratch:
         self.adj = ti.field(ti.i32, 2 * bc)
         self.slot_dv = ti.Vector.field(3, ti.f32, 2 * bc)
         self.slot_dw = ti.Vector.field(3, ti.f32, 2 * bc)
+        self.active_count = ti.field(ti.i32, nb)  # blocks of the body that can act this step (n_b)
+        self.fresh_count = ti.field(ti.i32, nb)  # of those, impacts (new and fast)
         self.scale = ti.field(ti.f32, nb)
         self.weight = ti.field(ti.f32, nb)
         self.scanner = Scanner(nb + 1)
@@ -90,8 +104,34 @@ def n_blocks(c: ti.template(), kind: ti.template()) -> ti.i32:
 
 
 @ti.func
-def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-                    mode: ti.template(), omega: ti.f32):
+def _point_can_act(c: ti.template(), rows: ti.template(), q: ti.i32) -> ti.i32:
+    """Point q touches or penetrates, carries a warm-start impulse, or closes its gap within
+    the step at its approach speed (rows.prepare_row and the warm-start match ran before)."""
+    sep = c.sep[q]
+    closing = sep + ti.min(rows.approach[q], 0.0) * rows.params[STEP_DT] - rows.params[GRAVITY_REACH]
+    return ti.cast(sep <= 0.0 or rows.lam[q][0] > 0.0 or closing <= 0.0, ti.i32)
+
+
+@ti.func
+def _block_can_act(c: ti.template(), rows: ti.template(), k: ti.i32, kind: ti.template()):
+    """(whether block k can act, whether it is an impact: a new contact, without a warm-start
+    impulse, approaching faster than the restitution threshold)."""
+    start, count, _, _ = block_range(c, k, kind)
+    act = 0
+    warm = 0
+    fast = 0
+    for q in range(start, start + count):
+        act |= _point_can_act(c, rows, q)
+        warm |= ti.cast(rows.lam[q][0] > 0.0, ti.i32)
+        fast |= ti.cast(rows.approach[q] < -rows.params[RESTITUTION_THRESHOLD], ti.i32)
+    return act, act * (1 - warm) * fast
+
+
+@ti.func
+def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.template(), rows: ti.template(),
+                          kind: ti.template(), mode: ti.template(), omega: ti.f32):
+    """Each dynamic body's sorted block endpoints, its split count and its scale and weight
+    (module docstring). Reads this step's rows and warm-start impulses (the split count)."""
     nb = bodies.count[None]
     nk = n_blocks(c, kind)
     s.block_count[None] = nk
@@ -99,13 +139,23 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
     for i in range(nb):
         s.adj_count[i] = 0
         s.adj_fill[i] = 0
+        s.active_count[i] = 0
+        s.fresh_count[i] = 0
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(nk):
         _, _, a, b = block_range(c, k, kind)
+        act = 0
+        fresh = 0
+        if ti.static(mode == MODE_SPLIT):
+            act, fresh = _block_can_act(c, rows, k, kind)
         if bodies.inv_mass[a] > 0.0:
             ti.atomic_add(s.adj_count[a], 1)
+            ti.atomic_add(s.active_count[a], act)
+            ti.atomic_add(s.fresh_count[a], fresh)
         if bodies.inv_mass[b] > 0.0:
             ti.atomic_add(s.adj_count[b], 1)
+            ti.atomic_add(s.active_count[b], act)
+            ti.atomic_add(s.fresh_count[b], fresh)
     exclusive_scan(s.scanner, s.adj_count, s.adj_start, nb, s.adj_total)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(nk):
@@ -116,22 +166,57 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
             s.adj[s.adj_start[b] + ti.atomic_add(s.adj_fill[b], 1)] = 2 * k + 1
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(nb):
-        e0 = s.adj_start[i]
-        e1 = s.adj_start[i + 1]
-        sort_range(s.adj, e0, e1)
-        deg = ti.max(e1 - e0, 1)
+        sort_range(s.adj, s.adj_start[i], s.adj_start[i + 1])
         if ti.static(mode == MODE_SPLIT):
-            s.scale[i] = ti.cast(deg, ti.f32) / omega
-            s.weight[i] = omega / deg
+            # over-relaxation makes up for the split's slack (n_b contacts rarely push one way),
+            # so a body's scale never drops below one sub-body: a lone block stays exact
+            # ... but not while an impact arrives: over-relaxing it overshoots
+            # (a debris box landing at 9.6 m/s left at 20.8 m/s, docs/method-notes.md)
+            relax = omega if s.fresh_count[i] == 0 else 1.0
+            split = ti.max(ti.cast(ti.max(s.active_count[i], 1), ti.f32) / relax, 1.0)
+            s.scale[i] = split
+            s.weight[i] = 1.0 / split
         else:
             s.scale[i] = 1.0 / omega
             s.weight[i] = omega
 
 
 @ti.kernel
-def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-                    mode: ti.template(), omega: ti.f32):
-    build_adjacency_loops(s, c, bodies, kind, mode, omega)
+def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), rows: ti.template(),
+                    kind: ti.template(), mode: ti.template(), omega: ti.f32):
+    build_adjacency_loops(s, c, bodies, rows, kind, mode, omega)
+
+
+@ti.func
+def update_support_loops(s: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
+                         awake: ti.template(), kind: ti.template()):
+    """After a step: each dynamic body's support force [N] (the upward part of the normal
+    impulses of the contacts that hold it up, over the last substep), averaged over
+    ``contact_load_time``, and its support point count: the load its contacts' springs
+    stiffen for next step (contact_spring.supported_load). Every schedule builds the
+    adjacency this walks, so the sum runs in a fixed order."""
+    for k in range(body_total(bodies, awake)):
+        i = body_id(awake, k)
+        if bodies.inv_mass[i] > 0.0:
+            force = 0.0
+            points = 0
+            for e in range(s.adj_start[i], s.adj_start[i + 1]):
+                slot = s.adj[e]
+                start, count, _, _ = block_range(c, slot // 2, kind)
+                side = 1.0 if slot % 2 == 1 else -1.0  # body b is pushed along +n, body a along -n
+                for q in range(start, start + count):
+                    lift = support_push(rows.params, side * c.normal[q])
+                    if lift > 0.0:
+                        force += ti.max(rows.lam[q][0], 0.0) * rows.params[INV_H] * lift
+                        points += 1
+            bodies.support[i] += rows.params[LOAD_BLEND] * (force - bodies.support[i])
+            bodies.support_points[i] = points
+
+
+@ti.kernel
+def update_support(s: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
+                   awake: ti.template(), kind: ti.template()):
+    update_support_loops(s, c, rows, bodies, awake, kind)
 
 
 @ti.func

@@ -14,27 +14,39 @@ position update, one relax sweep. Between substeps the separation of every
 point is updated from the bodies' motion since the step began (the Jacobians
 stay those of the step start), so the solver sees penetration resolve as it
 happens instead of extrapolating from a stale gap. Contacts are soft
-(method.md 1.9): penetration beyond the slop is a spring-damper of
-``contact_hertz`` and ``contact_damping_ratio``; with omega = 2 pi f and
-c = h omega (2 zeta + h omega) the normal row solves the regularised problem
-``0 <= lambda  _|_  J u + b + gamma lambda >= 0``, bias ``b`` = rate x
-penetration, compliance ``gamma = K / c`` from the *unsplit* response K. A
+(method.md 1.9): penetration beyond the slop is a spring-damper, one per row
+(contact_spring.py says how stiff, and why no stiffer); the normal row solves the
+regularised problem ``0 <= lambda  _|_  J u + b + gamma lambda >= 0``, bias ``b`` =
+rate x penetration, compliance ``gamma = K / c`` from the *unsplit* response K. A
 schedule with split response K~ updates ``dl = -(J u + b + gamma lambda) /
 (K~ + gamma)``, which has the same fixed point as the unsplit row: softness is
-physics, and mass splitting must not change it. Gaps (s > 0) are rigid
-speculative targets s / h. The relax sweep is rigid with no spring term: the
-positions were corrected by the biased velocity, but the push-out velocity does
-not survive as momentum, so position correction cannot pump energy into a
-stack. Restitution is a last normal-only pass against the approach speed
-measured before the step (Box2D v3's restitution stage).
+physics, and mass splitting must not change it. Gaps (s > 0) are speculative
+targets s / h; in the biased sweep they keep the spring's compliance, as Rapier's soft
+rows do, so that a row's update is continuous where its gap closes (the earlier rows
+stepped gaps with the soft denominator but without the compliance term, an update of
+neither kind; made rigid, as Box2D v3 does, the top card of the leaning-planks house
+slid off at 4 iterations: measured, docs/method-notes.md). The relax sweep is rigid
+with no spring term: the positions were corrected by the biased velocity, but the
+push-out velocity does not survive as momentum, so position correction cannot pump
+energy into a stack.
+
+Restitution is a normal-only pass after the substeps (Box2D v3's restitution stage),
+against the approach speed measured before the step, for every point that carried an
+impulse during the step (also one first caught as a speculative gap: its last substep
+may carry none), repeated until the split schedules converge too (solvers/schedule.py);
+its impulse is kept apart (``lam_bounce``) so the next step does not warm start with it.
 
 Impulses are per substep; the contact history stores them per step
 (x iterations) so changing the iteration count keeps warm starting consistent.
+When asked (restitution, breakable bodies, ``World.track_impulses``) each substep's
+impulses are summed into ``lam_step``, the step's impulse.
 """
 
 import taichi as ti
 
 from ..math3d import plane_basis, quat_rotate, quat_rotate_inv
+from .contact_spring import (INV_H, MAX_PUSH, PARAM_COUNT, RESTITUTION_THRESHOLD, RowParams, row_omega, spring,
+                             supported_load)
 
 vec3 = ti.math.vec3
 
@@ -54,8 +66,7 @@ class Rows:
         self.rb_body = ti.Vector.field(3, ti.f32, c)
         self.approach = ti.field(ti.f32, c)  # [m/s] normal velocity before the step (restitution)
         self.sep_now = ti.field(ti.f32, c)  # [m] separation at the last position update (normal_target)
-        # per-step constants of the row update: 1/h_sub, bias rate, softness 1/c, max push, restitution threshold
-        self.params = ti.field(ti.f32, 8)
+        self.params = ti.field(ti.f32, PARAM_COUNT)  # this step's constants (contact_spring.row_params)
         self.lam = ti.Vector.field(3, ti.f32, c)  # accumulated impulses (n, t1, t2) [N s]
         # per step, with the schedule's mass scale s (prepare_response): rows e = n, t1, t2
         self.ang_a = ti.Matrix.field(3, 3, ti.f32, c)  # r_a x e
@@ -66,21 +77,14 @@ class Rows:
         self.lin_b = ti.field(ti.f32, c)
         self.inv_k = ti.Vector.field(3, ti.f32, c)  # 1 / K~ of the rigid rows (n, t1, t2)
         self.inv_k_soft = ti.field(ti.f32, c)  # 1 / (K~_n + gamma) of the soft normal row
+        self.rate = ti.field(ti.f32, c)  # [1/s] the normal row's bias rate (contact_spring.py)
+        self.gamma = ti.field(ti.f32, c)  # the normal row's compliance gamma = K / c
+        self.lam_step = ti.Vector.field(3, ti.f32, c)  # [N s] impulses summed over the step (when tracked)
+        self.lam_bounce = ti.field(ti.f32, c)  # [N s] the restitution pass's normal impulse
+        self.bounce_residual = ti.field(ti.f32, ())  # [m/s] largest bounce-row residual of the last sweep
         self.residual = ti.field(ti.f32, c)  # squared LCP residual of the point's rows [(m/s)^2]
 
 
-def soft_contact_coefficients(h: float, hertz: float, zeta: float) -> tuple[float, float]:
-    """(bias rate [1/s], softness 1/c) of a contact spring of ``hertz`` for substep ``h``,
-    capped at a quarter of the substep rate (Box2D v3 ``b2MakeSoft`` and its contact limit)."""
-    import math
-
-    hertz = min(hertz, 0.25 / h)
-    omega = 2.0 * math.pi * hertz
-    c = h * omega * (2.0 * zeta + h * omega)
-    return omega / (2.0 * zeta + h * omega), 1.0 / c
-
-
-INV_H, BIAS_RATE, SOFTNESS, MAX_PUSH, RESTITUTION_THRESHOLD = range(5)
 BIASED, RELAX, RESTITUTION = 0, 1, 2
 
 
@@ -91,13 +95,9 @@ def _share(inv_mass: ti.f32, inv_inertia: ti.template(), r: vec3, e: vec3) -> ti
 
 
 @ti.func
-def set_row_params(rows: ti.template(), inv_h: ti.f32, bias_rate: ti.f32, softness: ti.f32, max_push: ti.f32,
-                   restitution_threshold: ti.f32):
-    rows.params[INV_H] = inv_h
-    rows.params[BIAS_RATE] = bias_rate
-    rows.params[SOFTNESS] = softness
-    rows.params[MAX_PUSH] = max_push
-    rows.params[RESTITUTION_THRESHOLD] = restitution_threshold
+def set_row_params(rows: ti.template(), params: ti.template()):
+    for i in ti.static(range(PARAM_COUNT)):
+        rows.params[i] = params[i]
 
 
 @ti.func
@@ -125,20 +125,20 @@ def prepare_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
     v_rel = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
     rows.approach[q] = v_rel.dot(n)
     rows.sep_now[q] = c.sep[q]  # the bodies have not moved since the narrowphase
+    rows.lam_step[q] = vec3(0.0)
+    rows.lam_bounce[q] = 0.0
 
 
 @ti.func
-def prepare_rows_loops(rows: ti.template(), c: ti.template(), bodies: ti.template(), inv_h: ti.f32, bias_rate: ti.f32,
-                 softness: ti.f32, max_push: ti.f32, restitution_threshold: ti.f32):
-    set_row_params(rows, inv_h, bias_rate, softness, max_push, restitution_threshold)
+def prepare_rows_loops(rows: ti.template(), c: ti.template(), bodies: ti.template(), params: ti.template()):
+    set_row_params(rows, params)
     for q in range(c.count[None]):
         prepare_row(rows, c, bodies, q)
 
 
 @ti.kernel
-def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), inv_h: ti.f32, bias_rate: ti.f32,
-                 softness: ti.f32, max_push: ti.f32, restitution_threshold: ti.f32):
-    prepare_rows_loops(rows, c, bodies, inv_h, bias_rate, softness, max_push, restitution_threshold)
+def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), params: RowParams):
+    prepare_rows_loops(rows, c, bodies, params)
 
 
 @ti.func
@@ -156,8 +156,9 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
 @ti.func
 def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32, mode: ti.template()):
     """(target velocity b, compliance gamma) of point q's normal row: the row asks for
-    n . v_rel + b + gamma lambda >= 0. Gaps are rigid speculative targets s / h; a
-    penetration gets the soft spring in BIASED mode and nothing in RELAX mode.
+    n . v_rel + b + gamma lambda >= 0. Gaps are speculative targets s / h; a penetration
+    gets the spring's bias in BIASED mode; BIASED rows are soft (gamma) either way, RELAX
+    rows rigid.
 
     The separation changes only when positions do, i.e. between a substep's biased and
     relax sweeps: the relax sweep (the first to run after a position update) computes it
@@ -174,8 +175,9 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
     if s > 0.0:
         target = s * rows.params[INV_H]
     elif ti.static(mode == BIASED):
-        target = ti.max(rows.params[BIAS_RATE] * ti.min(s + c.slop[q], 0.0), -rows.params[MAX_PUSH])
-        gamma = rows.params[SOFTNESS] * (rows.k_a[q][0] + rows.k_b[q][0])
+        target = ti.max(rows.rate[q] * ti.min(s + c.slop[q], 0.0), -rows.params[MAX_PUSH])
+    if ti.static(mode == BIASED):
+        gamma = rows.gamma[q]
     return target, gamma
 
 
@@ -183,8 +185,9 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
 def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
                 split: ti.template(), q: ti.i32):
     """What a sweep needs of point q, once per step: the angular Jacobians r x e of both
-    bodies for e = n, t1, t2, the velocity responses s I^-1 (r x e) and s / m, and the
-    inverse effective masses of the three rows (the normal one soft and rigid).
+    bodies for e = n, t1, t2, the velocity responses s I^-1 (r x e) and s / m, the normal
+    row's spring (contact_spring.py: it needs the split response), and the inverse
+    effective masses of the three rows (the normal one soft and rigid).
 
     ``s`` is the schedule's scale of the body's inverse mass and inertia (``scale[body]``
     when ``split``, else 1: PGS), used in the effective mass *and* when propagating the
@@ -215,7 +218,11 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     rows.lin_a[q] = bodies.inv_mass[a] * sa
     rows.lin_b[q] = bodies.inv_mass[b] * sb
     k = sa * rows.k_a[q] + sb * rows.k_b[q]
-    gamma = rows.params[SOFTNESS] * (rows.k_a[q][0] + rows.k_b[q][0])
+    k_true = rows.k_a[q][0] + rows.k_b[q][0]
+    omega = row_omega(rows.params, k_true, k[0], supported_load(rows.params, c, bodies, q), c.size[q])
+    rate, gamma = spring(rows.params, omega, k_true)
+    rows.rate[q] = rate
+    rows.gamma[q] = gamma
     rows.inv_k[q] = 1.0 / k
     rows.inv_k_soft[q] = 1.0 / (k[0] + gamma)
 
@@ -282,20 +289,27 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
         lam[1] = f1
         lam[2] = f2
     # normal row
-    target = 0.0
-    gamma = 0.0
-    inv_kn = inv_k[0]
-    active = True
     if ti.static(mode == RESTITUTION):
+        # the bounce, on its own accumulator: towards -e x the approach speed before the step
         e = c.restitution[q]
         vn0 = rows.approach[q]
-        active = e > 0.0 and vn0 < -rows.params[RESTITUTION_THRESHOLD] and lam[0] > 0.0
-        target = e * vn0
+        if e > 0.0 and vn0 < -rows.params[RESTITUTION_THRESHOLD] and rows.lam_step[q][0] > 0.0:
+            vn = (vb - va).dot(n) + wb.dot(_row(jb, 0)) - wa.dot(_row(ja, 0))
+            lb = rows.lam_bounce[q]
+            nb = ti.max(lb - (vn + e * vn0) * inv_k[0], 0.0)
+            if nb > 0.0 or vn + e * vn0 < 0.0:  # not converged while the row still wants to change
+                ti.atomic_max(rows.bounce_residual[None], ti.abs(vn + e * vn0))
+            d = nb - lb
+            va -= ma * d * n
+            wa -= _row(rows.resp_a[q], 0) * d
+            vb += mb * d * n
+            wb += _row(rows.resp_b[q], 0) * d
+            rows.lam_bounce[q] = nb
     else:
         target, gamma = normal_target(rows, c, bodies, q, mode)
+        inv_kn = inv_k[0]
         if ti.static(mode == BIASED):
             inv_kn = rows.inv_k_soft[q]
-    if active:
         vn = (vb - va).dot(n) + wb.dot(_row(jb, 0)) - wa.dot(_row(ja, 0))
         ln = ti.max(lam[0] - (vn + target + gamma * lam[0]) * inv_kn, 0.0)
         d = ln - lam[0]
@@ -304,8 +318,32 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
         vb += mb * d * n
         wb += _row(rows.resp_b[q], 0) * d
         lam[0] = ln
-    rows.lam[q] = lam
+        rows.lam[q] = lam
     return va, wa, vb, wb
+
+
+@ti.func
+def add_step_impulse(rows: ti.template(), q: ti.i32):
+    """After a substep: point q's impulses of that substep join the step's sum."""
+    rows.lam_step[q] += rows.lam[q]
+
+
+@ti.func
+def add_step_impulses_loop(rows: ti.template(), c: ti.template()):
+    for q in range(c.count[None]):
+        add_step_impulse(rows, q)
+
+
+@ti.kernel
+def add_step_impulses(rows: ti.template(), c: ti.template()):
+    add_step_impulses_loop(rows, c)
+
+
+@ti.kernel
+def add_bounces(rows: ti.template(), c: ti.template()):
+    """After the restitution pass: its impulses join the step's sum (not the warm start)."""
+    for q in range(c.count[None]):
+        rows.lam_step[q][0] += rows.lam_bounce[q]
 
 
 @ti.func

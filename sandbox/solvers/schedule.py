@@ -35,7 +35,7 @@ class Loop:
     buf: object  # buffers.BufferSet
     friction: bool  # friction rows are solved
     warm: bool  # last step's impulses warm start the first substep
-    watch: bool  # each substep's normal impulses go to the impact monitor (impact.py)
+    track: bool  # each substep's impulses are summed into the step's (rows.lam_step)
     gravity: object  # ti.math.vec3 [m/s^2]
     h: float  # substep [s]
     iterations: int  # substeps per step
@@ -57,9 +57,12 @@ class Schedule:
 
     # ------------------------------------------------------------------ per step
     def relaxation(self, settings) -> float:
-        """omega of the merge: the ``relaxation`` option, else the description's default."""
-        omega = self.options.get("relaxation") or self.info.default_relaxation or settings.jacobi_relaxation
-        return float(omega)
+        """omega of the merge: the ``relaxation`` option, else the setting the description names."""
+        given = self.options.get("relaxation")
+        if given is not None:
+            return float(given)
+        name = self.info.relaxation_setting
+        return float(getattr(settings, name)) if name else 1.0
 
     def adjacency_args(self, buf, settings) -> tuple:
         """(block scratch, kind, mode, omega, scaled responses): the schedule's arguments of
@@ -69,7 +72,7 @@ class Schedule:
     def prepare(self, buf, settings, step: int) -> None:
         """After the rows: body adjacency, scaled responses and colouring, as separate launches."""
         blk, kind, mode, omega, scaled = self.adjacency_args(buf, settings)
-        mass_splitting.build_adjacency(blk, buf.contacts, buf.bodies, kind, mode, omega)
+        mass_splitting.build_adjacency(blk, buf.contacts, buf.bodies, buf.rows, kind, mode, omega)
         contact_rows.prepare_response(buf.rows, buf.contacts, buf.bodies, blk.scale, scaled)
         self.color(buf, step)
 
@@ -113,6 +116,24 @@ class Schedule:
             g = gravity if gravity is not None else ti.math.vec3(0.0)
             mass_splitting.jacobi_sweep(buf.blocks, rows, c, bodies, awake, self.kind, mode, friction, then_warm, g, h)
 
+    def restitution(self, buf, awake, friction: bool, tolerance: float, max_sweeps: int) -> int:
+        """The bounce pass after the substeps: restitution sweeps of this schedule until no
+        bouncing row is off its target by more than ``tolerance`` [m/s] (one sweep for PGS on a
+        lone contact, several for the split schedules, as in the solve itself), at most
+        ``max_sweeps``; then their impulses join the step's sum. Returns the sweeps run (each
+        ends with one read of the largest residual; a step where nothing bounces stops after
+        one)."""
+        rows = buf.rows
+        done = 0
+        while done < max_sweeps:
+            rows.bounce_residual[None] = 0.0
+            self.sweep(buf, awake, contact_rows.RESTITUTION, friction)
+            done += 1
+            if rows.bounce_residual[None] <= tolerance:
+                break
+        contact_rows.add_bounces(rows, buf.contacts)
+        return done
+
     # ------------------------------------------------------------------ the fused iteration loop
     def launch(self, settings, arch: str) -> str:
         """Which launch runs the iteration loop (Settings.iteration_launch; "per-stage" is also
@@ -150,4 +171,4 @@ class Schedule:
         """The arguments every iteration-loop kernel of substep.py starts with."""
         b = loop.buf
         return (b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors, self.kind, self.visit, loop.friction,
-                loop.warm, b.impacts, loop.watch, loop.awake, loop.gravity, loop.h)
+                loop.warm, loop.track, loop.awake, loop.gravity, loop.h)

@@ -34,12 +34,11 @@ for the profiler (one timer per stage) and for residual recording (a read per sw
 import taichi as ti
 
 from ..awake import body_id, body_total
-from ..impact import accumulate_points_loop, add_point_impulse
 from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loop
 from . import team as tm
 from .mass_splitting import gather_body, sweep_block, sweep_blocks, warm_block, warm_start_blocks
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
-from .rows import BIASED, RELAX
+from .rows import BIASED, RELAX, add_step_impulse, add_step_impulses_loop
 
 vec3 = ti.math.vec3
 
@@ -80,10 +79,10 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
 @ti.kernel
 def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                      col: ti.template(), err: ti.template(), kind: ti.template(), schedule: ti.template(),
-                     friction: ti.template(), warm: ti.template(), impacts: ti.template(), watch: ti.template(),
+                     friction: ti.template(), warm: ti.template(), track: ti.template(),
                      awake: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32, sweeps: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, everything in order on one thread.
-    ``watch``: each substep's normal impulses are added to ``impacts`` (impact.py)."""
+    ``track``: each substep's impulses are added to the step's (``rows.lam_step``)."""
     fold = ti.static(folds_warm_start(schedule, warm))
     ti.loop_config(serialize=True)
     for it in range(iterations):
@@ -99,14 +98,14 @@ def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bo
             if ti.static(fold):
                 then_warm = 1 if it < iterations - 1 and sr == sweeps - 1 else 0
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
-        if ti.static(watch):
-            accumulate_points_loop(impacts, c, rows)
+        if ti.static(track):
+            add_step_impulses_loop(rows, c)
 
 
 @ti.kernel
 def substep_parallel(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                      col: ti.template(), err: ti.template(), kind: ti.template(), schedule: ti.template(),
-                     friction: ti.template(), warm: ti.template(), impacts: ti.template(), watch: ti.template(),
+                     friction: ti.template(), warm: ti.template(), track: ti.template(),
                      awake: ti.template(), gravity: vec3, h: ti.f32, first: ti.i32, then_warm: ti.i32):
     """One substep of ``h`` with one sweep each, every phase's loops parallel, in one launch.
     ``first``: this substep does its own gravity and warm start; ``then_warm``: its relax
@@ -116,8 +115,8 @@ def substep_parallel(s: ti.template(), rows: ti.template(), c: ti.template(), bo
     _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
     positions_loop(bodies, awake, h, err)
     _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
-    if ti.static(watch):
-        accumulate_points_loop(impacts, c, rows)
+    if ti.static(track):
+        add_step_impulses_loop(rows, c)
 
 
 def shared_phase_bound(schedule: int, iterations: int, sweeps: int) -> int:
@@ -223,13 +222,13 @@ def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
 
 @ti.func
 def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, c: ti.template(),
-                 rows: ti.template(), impacts: ti.template()) -> ti.i32:
-    """The substep's normal impulses added to the impact monitor, point by point."""
+                 rows: ti.template()) -> ti.i32:
+    """The substep's impulses added to the step's, point by point."""
     n = c.count[None]
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
     while lo < hi:
         for q in range(lo, hi):
-            add_point_impulse(impacts, rows, q)
+            add_step_impulse(rows, q)
         tm.finish(team, p, hi - lo)
         lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
     tm.wait(team, p, n)
@@ -239,8 +238,8 @@ def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 @ti.func
 def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(),
                  c: ti.template(), bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
-                 schedule: ti.template(), friction: ti.template(), warm: ti.template(), impacts: ti.template(),
-                 watch: ti.template(), awake: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
+                 schedule: ti.template(), friction: ti.template(), warm: ti.template(), track: ti.template(),
+                 awake: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
                  sweeps: ti.i32):
     """What one thread runs: every phase of ``iterate_in_order``, in its order."""
     fold = ti.static(folds_warm_start(schedule, warm))
@@ -264,15 +263,15 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
                 then_warm = 1 if it < iterations - 1 and sr == sweeps - 1 else 0
             p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, col, err, kind, schedule, RELAX,
                               friction, then_warm, 0, gravity, h)
-        if ti.static(watch):
-            p = _point_phase(team, p, member, members, c, rows, impacts)
+        if ti.static(track):
+            p = _point_phase(team, p, member, members, c, rows)
 
 
 @ti.kernel
 def iterate_shared(team: ti.template(), s: ti.template(), rows: ti.template(), c: ti.template(),
                    bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
-                   schedule: ti.template(), friction: ti.template(), warm: ti.template(), impacts: ti.template(),
-                   watch: ti.template(), awake: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
+                   schedule: ti.template(), friction: ti.template(), warm: ti.template(), track: ti.template(),
+                   awake: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
                    sweeps: ti.i32, phases: ti.i32, members: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, shared by ``members`` threads."""
     ti.static_assert(schedule != PGS, "serial PGS has nothing to share")
@@ -280,4 +279,4 @@ def iterate_shared(team: ti.template(), s: ti.template(), rows: ti.template(), c
     for i in range(members * tm.TASK_ITEMS):
         if i % tm.TASK_ITEMS == 0:
             _team_member(team, i // tm.TASK_ITEMS, members, s, rows, c, bodies, col, err, kind, schedule, friction,
-                         warm, impacts, watch, awake, gravity, h, iterations, sweeps)
+                         warm, track, awake, gravity, h, iterations, sweeps)

@@ -16,7 +16,7 @@ from sandbox.scene import generators, terrain
 from sandbox.scene.hull import MAX_HULL_VERTICES
 from sandbox.scene.rotations import quat_to_matrix
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenes"
 ANCHORS = Path("/work/shared/anchors/scenes.json")
 SCENE_FILES = sorted(SCENES.glob("*.toml"))

@@ -22,7 +22,7 @@ from sandbox.scene import generators
 from sandbox.scene.loader import EFFECTS, EVENT_KINDS, GENERATOR_KINDS
 from sandbox.scene.rotations import quat_to_matrix
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenes"
 ANCHORS = Path("/work/shared/anchors/scenes.json")
 SOURCE = "events.toml"

@@ -10,7 +10,7 @@ import pytest
 from sandbox import Scene, Settings, World
 from sandbox.errors import SandboxError
 
-from .conftest import box_body, scene_dict
+from tests.helpers import box_body, scene_dict
 
 
 def _stack_scene():

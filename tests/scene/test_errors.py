@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from sandbox.errors import SceneError
 from sandbox.scene import load_scene, scene_from_dict
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenes"
 SOURCE = "bad_scene.toml"
 

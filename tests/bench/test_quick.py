@@ -87,9 +87,11 @@ def test_numbers_are_sane(quick):
 
 
 def test_cost_grows_with_iterations(quick):
+    """The iteration stage, 16 iterations against 1: sixteen times the work. The whole step is
+    not compared: at these sizes its fixed cost dominates, and a test process beside this one
+    (pytest-xdist) made 16 iterations read 5.03 ms against 5.08 ms for 1 in a CI run."""
     for solver in bench.QUICK["solvers"]:
         rows = _sandbox_rows(quick["rows"], "pyramid_20", solver)
-        assert float(rows[-1]["ms_per_step"]) > float(rows[0]["ms_per_step"])
         assert float(rows[-1]["ms_iterate"]) > float(rows[0]["ms_iterate"])
 
 

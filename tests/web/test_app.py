@@ -23,7 +23,7 @@ import pytest
 from web.app import free_port
 from web.browser import CHROMIUM_ARGS, chromium_path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "tests" / "data" / "web_scene.toml"
 ARTIFACTS = Path(os.environ.get("SANDBOX_ARTIFACTS", ROOT / "artifacts"))
 START_TIMEOUT_S = 300  # compiling the kernels on a busy 2-core machine

@@ -1,0 +1,168 @@
+"""How stiff a contact spring each schedule can carry, and why (docs/method-notes.md,
+"Why low iteration counts blew up").
+
+    python benchmarks/stiffness_limit.py model                    # seconds: numpy only
+    python benchmarks/stiffness_limit.py scan [pyramid_20] [--steps 300]
+            [--solvers pgs,mass-splitting,block-mass-splitting] [--iterations 1,2,4,8,15,30]
+            [--hertz 5,10,15,20,30,45,60]                         # ~30 min on 2 cores
+
+``model``: the soft step of solvers/rows.py on a column of N unit boxes (1000 kg, one
+contact point per face, vertical motion only, every contact active), as a linear map
+of one step (positions, velocities, accumulated impulses); prints its spectral radius
+for serial PGS and per-point mass splitting at 30 Hz, without and with the per-row
+stability limit (contact_spring.py). Above 1 a resting column gains energy every step.
+The growing mode is the column's slowest (quarter-wave) one.
+
+``scan``: the engine itself, with the limit turned off (``contact_stiffness_limit = 0``):
+for each schedule, iteration count and ``contact_hertz``, the mean kinetic energy of the
+last 60 of ``--steps`` frames, the peak speed and the top body's displacement. The largest
+stable frequency per row shows the limit omega h ~ kappa sqrt(S K / K~).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+import numpy as np
+
+
+# ----------------------------------------------------------------------------- the model
+def _spring(h, omega, zeta):
+    """(bias rate, softness 1 / c) of a spring of ``omega`` over a substep ``h``."""
+    c = h * omega * (2.0 * zeta + h * omega)
+    return omega / (2.0 * zeta + h * omega), 1.0 / c
+
+
+def column_step_radius(boxes: int, iterations: int, schedule: str, hertz: float = 30.0, zeta: float = 10.0,
+                       dt: float = 1.0 / 60.0, points: int = 1, kappa: float | None = None) -> float:
+    """Spectral radius of one step of the soft step on a column (module docstring).
+    ``schedule``: "pgs" (points one by one, in place) or "ms" (every point from the same
+    velocities, split masses). ``kappa``: the per-row stability limit, or None. With more
+    than one point per face the rows of a face are exactly redundant in this 1-D model
+    (no turning), which a real face is not."""
+    n = boxes
+    inv_m = np.full(n, 1.0 / 1000.0)
+    h = dt / iterations
+    k_a = np.concatenate([[0.0], inv_m[:-1]])  # contact j joins body j-1 (the ground for j = 0) and body j
+    k_b = inv_m.copy()
+    k = k_a + k_b
+    split = np.full(n, 2.0 * points)
+    split[-1] = points
+    k_split = np.concatenate([[0.0], split[:-1]]) * k_a + split * k_b if schedule == "ms" else k
+    omega = np.full(n, 2.0 * math.pi * min(hertz, 0.25 / h))
+    if kappa is not None:
+        omega = np.minimum(omega, kappa * np.sqrt(2.0 * k / k_split) / h)
+    rate, softness = _spring(h, omega, zeta)
+    gamma = softness * k
+
+    def apply(v, impulse):
+        v = v + impulse * inv_m
+        v[:-1] -= impulse[1:] * inv_m[:-1]
+        return v
+
+    def sweep(v, lam, target, g):
+        if schedule == "ms":
+            w = v.copy()
+            w[1:] -= v[:-1]
+            dl = -(w[:, None] + target[:, None] + g[:, None] * lam) / (k_split + g)[:, None]
+            return apply(v, dl.sum(1)), lam + dl
+        v, lam = v.copy(), lam.copy()
+        for j in range(n):
+            for p in range(points):
+                w = v[j] - (v[j - 1] if j else 0.0)
+                dl = -(w + target[j] + g[j] * lam[j, p]) / (k[j] + g[j])
+                lam[j, p] += dl
+                v[j] += dl * inv_m[j]
+                if j:
+                    v[j - 1] -= dl * inv_m[j - 1]
+        return v, lam
+
+    def step(state):
+        x, v, lam = state[:n].copy(), state[n:2 * n].copy(), state[2 * n:].reshape(n, points).copy()
+        x0 = x.copy()
+        sep0 = x - np.concatenate([[0.0], x[:-1]])
+        sep = sep0
+        for _ in range(iterations):
+            v = apply(v, lam.sum(1))  # warm start (gravity is a constant: it drops out of the linear map)
+            v, lam = sweep(v, lam, rate * sep, gamma)
+            x = x + h * v
+            moved = x - x0
+            sep = sep0 + moved - np.concatenate([[0.0], moved[:-1]])
+            v, lam = sweep(v, lam, 0.0 * sep, 0.0 * gamma)  # the rigid relax sweep
+        return np.concatenate([x, v, lam.ravel()])
+
+    size = n * (2 + points)
+    base = step(np.zeros(size))
+    jac = np.empty((size, size))
+    for i in range(size):
+        e = np.zeros(size)
+        e[i] = 1e-3
+        jac[:, i] = (step(e) - base) / 1e-3
+    return float(np.abs(np.linalg.eigvals(jac)).max())
+
+
+def run_model(args) -> None:
+    from sandbox import Settings
+
+    kappa = Settings().contact_stiffness_limit
+    counts = [int(x) for x in args.iterations.split(",")]
+    print(f"spectral radius of one step, {args.boxes}-box column, 30 Hz; > 1: a resting column gains energy")
+    print(f"{'schedule':28s}" + "".join(f"{k:>9d} it" for k in counts))
+    for schedule, label in (("pgs", "serial PGS"), ("ms", "mass splitting (per point)")):
+        for limit in (None, kappa):
+            row = [column_step_radius(args.boxes, k, schedule, kappa=limit) for k in counts]
+            name = label + ("" if limit is None else f", limited {limit:g}")
+            print(f"{name:28s}" + "".join(f"{r:12.4f}" for r in row), flush=True)
+
+
+# ----------------------------------------------------------------------------- the scan
+def run_scan(args) -> None:
+    from sandbox import Scene, Settings, World
+    from sandbox.errors import SimulationError
+    from sandbox.scene.library import resolve_scene
+
+    scene = Scene.load(resolve_scene(args.scene))
+    print(f"{args.scene}, {args.steps} steps, stability limit off: mean KE of the last 60 frames, peak speed, "
+          "top body's displacement")
+    for solver in args.solvers.split(","):
+        for k in (int(x) for x in args.iterations.split(",")):
+            for hz in (float(x) for x in args.hertz.split(",")):
+                settings = Settings(contact_hertz=hz, contact_stiffness_limit=0.0)
+                world = World(scene, solver=solver, iterations=k, arch="cpu", settings=settings)
+                start = world.state()["position"]
+                top = int(np.argmax(start[:, 2]))
+                energy, peak, note = [], 0.0, ""
+                try:
+                    for _ in range(args.steps):
+                        world.step(1)
+                        energy.append(world.metrics()["kinetic_energy"])
+                        v = world.state(["linear_velocity"])["linear_velocity"]
+                        peak = max(peak, float(np.linalg.norm(v, axis=1).max()))
+                except SimulationError:
+                    note = "  diverged"
+                moved = float(np.linalg.norm(world.state()["position"][top] - start[top]))
+                world.close()
+                ke = float(np.mean(energy[-60:])) if energy else float("nan")
+                print(f"{solver:22s} {k:3d} it {hz:5.1f} Hz  KE {ke:9.2e} J  peak {peak:6.2f} m/s  "
+                      f"top {moved:6.3f} m{note}", flush=True)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="what", required=True)
+    model = sub.add_parser("model", help="spectral radius of the linear column model")
+    model.add_argument("--boxes", type=int, default=20)
+    model.add_argument("--iterations", default="1,2,4,8,15,30")
+    scan = sub.add_parser("scan", help="the engine with the stability limit off")
+    scan.add_argument("scene", nargs="?", default="pyramid_20")
+    scan.add_argument("--steps", type=int, default=300)
+    scan.add_argument("--solvers", default="pgs,mass-splitting,block-mass-splitting")
+    scan.add_argument("--iterations", default="1,2,4,8,15,30")
+    scan.add_argument("--hertz", default="5,10,15,20,30,45,60")
+    args = ap.parse_args()
+    run_model(args) if args.what == "model" else run_scan(args)
+
+
+if __name__ == "__main__":
+    main()

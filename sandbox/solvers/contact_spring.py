@@ -1,0 +1,124 @@
+"""The soft contact's spring, row by row: how stiff each contact is, and why no stiffer.
+
+Box2D v3's soft step (solvers/rows.py) turns a penetration beyond the slop into a
+spring-damper of angular frequency omega and damping ratio zeta: with the substep h and
+c = h omega (2 zeta + h omega) the normal row solves ``n . v + b + gamma lambda >= 0`` with
+bias ``b = rate x penetration``, ``rate = omega / (2 zeta + h omega)`` and compliance
+``gamma = K / c`` (K the row's unsplit unit response). A contact carrying a force F
+deflects ``F K / omega^2`` at rest.
+
+Three things set a row's omega, in this order:
+
+1. ``Settings.contact_hertz``, the softness asked for (capped at a quarter of the substep
+   rate, as Box2D does);
+2. its load: a contact whose load F would press it further than ``contact_deflection``
+   x its pair's size gets omega^2 = F K / that deflection, so that a heavy body on a light
+   one, or a stack of millimetre cubes, does not sink by the light body's or the small
+   body's measure. F is not the contact's own impulse: a stiffness that follows its own
+   force makes a body resting on two supports send ever more load to the stiffer one (a
+   statically indeterminate load split with stiffness growing with load has no stable
+   equilibrium; measured: a resting pyramid's energy 1e-8 J -> 1.6 J). F is the support
+   force of the body the contact holds up (the upward component of all its support
+   impulses, averaged over ``contact_load_time``) shared equally among that body's support
+   points (``mass_splitting.update_support``): what the body weighs, with what it carries;
+3. the stability limit of the schedule: ``omega h <= kappa sqrt(S K / K~)``.
+
+Why the limit (docs/method-notes.md, "Why low iteration counts blew up"): a sweep steps a
+row by ``dl = -(J v + b + gamma lambda) / (K~ + gamma)``, where K~ is the response the
+schedule divides by (K for PGS; ~n_b K for mass splitting, whose n_b sub-bodies each see
+1/n_b of the body). The spring's damping acts through that update, and for the slow,
+whole-structure modes of a stack the update only forgets a fraction gamma / K~ of the old
+impulse per sweep: the spring force lags. A third-order model of one such mode (impulse,
+velocity, penetration) is stable while ``gamma S / (K~ h) > rate`` (S sweeps per substep),
+i.e. while ``(h omega)^2 < S K / K~`` to first order, whatever zeta is. Measured on the
+210-box pyramid the onset is at kappa ~0.7 for PGS, mass splitting and block mass
+splitting alike (mass splitting at 4, 8 and 15 iterations, PGS at 2, 4 and 8).
+The same inequality bounds every stable row's static deflection from below:
+``F K / omega^2 >= F K~ h^2 / (S kappa^2)``. A schedule that divides by a larger K~ (mass
+splitting) sags more at the same substep; few iterations sag, they do not fly.
+"""
+
+import math
+
+import taichi as ti
+
+(INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
+ UP_Z, GRAVITY_REACH) = range(13)
+PARAM_COUNT = 16
+"""Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
+kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
+deflection [1], the support average's blend per step [1], the step [s], the up
+direction (against gravity; zero without gravity) and the gap gravity closes in one step
+from rest, |g| dt^2 [m]."""
+
+SUPPORT_COS = 0.7071
+"""A contact supports the body it pushes when its push is within 45 degrees of up."""
+
+RowParams = ti.types.vector(PARAM_COUNT, ti.f32)
+
+
+def row_params(settings, h: float, sweeps: int, dt: float, gravity):
+    """This step's ``RowParams`` from ``settings`` for substeps of ``h`` [s] with ``sweeps``
+    biased and as many relax sweeps each, in steps of ``dt`` [s], under ``gravity`` [m/s^2]."""
+    values = [0.0] * PARAM_COUNT
+    values[INV_H] = 1.0 / h
+    values[OMEGA] = 2.0 * math.pi * min(settings.contact_hertz, 0.25 / h)
+    values[ZETA] = settings.contact_damping_ratio
+    values[STIFFNESS_LIMIT] = settings.contact_stiffness_limit * math.sqrt(2.0 * sweeps)
+    values[MAX_PUSH] = settings.max_push_speed
+    values[RESTITUTION_THRESHOLD] = settings.restitution_threshold
+    values[DEFLECTION] = settings.contact_deflection
+    values[LOAD_BLEND] = min(1.0, dt / settings.contact_load_time) if settings.contact_load_time > 0 else 1.0
+    values[STEP_DT] = dt
+    g = math.sqrt(sum(float(x) ** 2 for x in gravity))
+    if g > 0.0:
+        values[UP_X], values[UP_Y], values[UP_Z] = (-float(x) / g for x in gravity)
+    values[GRAVITY_REACH] = g * dt * dt
+    return RowParams(values)
+
+
+@ti.func
+def row_omega(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, size: ti.f32) -> ti.f32:
+    """omega [rad/s] of a row with unsplit response ``k_true``, the schedule's ``k_split``,
+    averaged normal force ``load`` [N] and pair size ``size`` [m] (module docstring)."""
+    omega = params[OMEGA]
+    deflection = params[DEFLECTION] * size
+    if deflection > 0.0 and load > 0.0:
+        omega = ti.max(omega, ti.sqrt(load * k_true / deflection))
+    if params[STIFFNESS_LIMIT] > 0.0:
+        omega = ti.min(omega, params[STIFFNESS_LIMIT] * ti.sqrt(k_true / k_split) * params[INV_H])
+    return omega
+
+
+@ti.func
+def spring(params: ti.template(), omega: ti.f32, k_true: ti.f32):
+    """(bias rate [1/s], compliance gamma) of a spring of ``omega`` on a row of response
+    ``k_true`` over one substep (Box2D v3 ``b2MakeSoft`` in the compliance form)."""
+    h = 1.0 / params[INV_H]
+    zeta = params[ZETA]
+    return omega / (2.0 * zeta + h * omega), k_true / (h * omega * (2.0 * zeta + h * omega))
+
+
+@ti.func
+def support_push(params: ti.template(), push: ti.math.vec3) -> ti.f32:
+    """How much a contact pushing its body along ``push`` holds it up: push . up when that is
+    within 45 degrees of up, else 0."""
+    u = push.dot(ti.math.vec3(params[UP_X], params[UP_Y], params[UP_Z]))
+    return u if u >= SUPPORT_COS else 0.0
+
+
+@ti.func
+def supported_load(params: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32) -> ti.f32:
+    """[N] The load of point q: the averaged support force of the body it holds up, shared
+    equally among that body's support points (0 when it holds up neither body)."""
+    n = c.normal[q]  # from body a to body b: b is pushed along +n
+    upper = -1
+    if support_push(params, n) > 0.0:
+        upper = c.body_b[q]
+    elif support_push(params, -n) > 0.0:
+        upper = c.body_a[q]
+    load = 0.0
+    if upper >= 0:
+        if bodies.inv_mass[upper] > 0.0:
+            load = bodies.support[upper] / ti.max(ti.cast(bodies.support_points[upper], ti.f32), 1.0)
+    return load

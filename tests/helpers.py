@@ -1,0 +1,63 @@
+"""What many test files build or check, written once: scene dicts (boxes, spheres, a ground
+plane), the states of two worlds compared bit for bit, and a world stepped while its metrics
+are collected. Import with ``from tests.helpers import ...`` (any test folder).
+
+Fixtures stay in ``conftest.py``; this module holds plain functions, so a test reads
+where its scene comes from.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+G = 9.81
+"""[m/s^2] the magnitude of ``scene_dict``'s default gravity."""
+DT = 1.0 / 60.0
+"""[s] ``scene_dict``'s default step."""
+
+
+def box_body(position, half=(0.5, 0.5, 0.5), mass=None, density=1000.0, **extra) -> dict:
+    """A box entry of a scene dict (the default: a unit cube of 1000 kg)."""
+    body = {"shape": "box", "half_extents": list(half), "position": list(position), **extra}
+    if mass is not None:
+        body["mass"] = mass
+    else:
+        body["density"] = density
+    return body
+
+
+def sphere_body(position, radius=0.5, density=1000.0, **extra) -> dict:
+    return {"shape": "sphere", "radius": radius, "position": list(position), "density": density, **extra}
+
+
+def plane(normal=(0.0, 0.0, 1.0), offset=0.0, friction=0.5) -> dict:
+    return {"shape": "plane", "normal": list(normal), "offset": offset, "friction": friction}
+
+
+def scene_dict(bodies, statics=(plane(),), gravity=(0.0, 0.0, -G), dt=DT, solver="pgs", iterations=10) -> dict:
+    """A scene as ``Scene.from_dict`` reads it: ``bodies`` over ``statics`` (a ground plane)."""
+    return {
+        "world": {"gravity": list(gravity), "dt": dt, "substeps": 1},
+        "solver": {"name": solver, "iterations": iterations},
+        "static": list(statics),
+        "body": list(bodies),
+    }
+
+
+def assert_same_state(expected: dict, actual: dict, label: str = "") -> None:
+    """Two ``World.state()`` dicts hold the same bits (NaN equal to NaN), field by field."""
+    assert expected.keys() == actual.keys(), label
+    for key in expected:
+        np.testing.assert_array_equal(expected[key], actual[key], err_msg=f"{label} {key}".strip())
+
+
+def run_collecting(world, steps: int, keys=("kinetic_energy", "max_penetration")) -> dict[str, np.ndarray]:
+    """Step ``world`` one step at a time, ``steps`` times, and return each metric of ``keys``
+    after every step (shape (steps,))."""
+    out = {k: np.empty(steps) for k in keys}
+    for s in range(steps):
+        world.step(1)
+        m = world.metrics()
+        for k in keys:
+            out[k][s] = m[k]
+    return out

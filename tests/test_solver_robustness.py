@@ -1,0 +1,146 @@
+"""Solvers that degrade gracefully (issue 15): few iterations sag, they never fly; every
+solver gives the same bounce; the split counts and the step's impulses mean what they say.
+
+The stability limit behind the first tests is derived and measured in docs/method-notes.md
+("Why low iteration counts blew up"): a schedule that steps a row by 1 / K~ can carry a
+spring of at most omega h ~ kappa sqrt(S K / K~), so its static deflection is at least
+F K~ h^2 / (S kappa^2). Where that floor is above a criterion, the case is an expected failure
+with its measured figure, never a loosened criterion.
+"""
+
+import numpy as np
+import pytest
+
+from sandbox import SOLVERS, Scene, World
+from sandbox.scene.library import SCENES_DIR
+
+from .conftest import box_body, plane, scene_dict
+
+G = 9.81
+
+PYRAMID_TOP_TOLERANCE = 0.05
+"""[m] The issue's criterion for the pyramid's top box (Rapier moves it 27 mm at 4 iterations)."""
+
+PYRAMID_RESTING_KE = 1.0
+"""[J] Mean kinetic energy of the last 60 frames of the 210-tonne pyramid: at rest, not ringing."""
+
+PYRAMID_SAG = {
+    # measured 2026-11-23 (docs/method-notes.md): the stability limit's deflection floor
+    ("mass-splitting", 4): "the top box sinks 0.28 m: the per-point split's K~ ~ 9 K lets a 4-substep step "
+                           "carry ~9 Hz springs",
+    ("mass-splitting", 8): "the top box sinks 77 mm: at 8 substeps the per-point split carries ~19 Hz",
+    ("block-mass-splitting", 4): "the top box sinks 79 mm: at 4 substeps the manifold split carries ~16 Hz",
+}
+
+
+def _pyramid_combos():
+    for solver in ("mass-splitting", "block-mass-splitting"):
+        for k in (4, 8):
+            reason = PYRAMID_SAG.get((solver, k))
+            marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
+            yield pytest.param(solver, k, marks=marks, id=f"{solver}-{k}")
+
+
+@pytest.mark.parametrize("solver, iterations", list(_pyramid_combos()))
+def test_split_schedules_keep_the_pyramid_standing(solver, iterations):
+    """pyramid_20, 600 steps: the top box stays within 5 cm and the pyramid comes to rest."""
+    world = World(Scene.load(SCENES_DIR / "pyramid_20.toml"), solver=solver, iterations=iterations, arch="cpu")
+    start = world.state()["position"]
+    top = int(np.argmax(start[:, 2]))
+    energies = []
+    for _ in range(600):
+        world.step(1)
+        energies.append(world.metrics()["kinetic_energy"])
+    moved = float(np.linalg.norm(world.state()["position"][top] - start[top]))
+    ke = float(np.mean(energies[-60:]))
+    assert moved < PYRAMID_TOP_TOLERANCE and ke < PYRAMID_RESTING_KE, f"top moved {moved:.3f} m, KE {ke:.3g} J"
+
+
+def _mechanical_energy(world, masses):
+    st = world.state()
+    m = world.metrics()
+    return m["kinetic_energy"] + G * float(np.dot(masses, st["position"][:, 2])), st
+
+
+@pytest.mark.parametrize("iterations", [1, 2, 4, 8, 15, 30])
+@pytest.mark.parametrize("solver", list(SOLVERS))
+def test_a_resting_block_never_gains_energy(solver, iterations):
+    """A 2 x 2 x 3 block of unit boxes (1000 kg) placed 1 mm apart, 300 steps: kinetic plus
+    potential energy never rises above its start, whatever the schedule and the count."""
+    bodies = [box_body([1.001 * x, 1.001 * y, 0.5 + 1.001 * z]) for x in range(2) for y in range(2) for z in range(3)]
+    world = World(Scene.from_dict(scene_dict(bodies)), solver=solver, iterations=iterations, arch="cpu")
+    masses = np.full(len(bodies), 1000.0)
+    e0, _ = _mechanical_energy(world, masses)
+    peak_gain, peak_speed = -np.inf, 0.0
+    for _ in range(300):
+        world.step(1)
+        e, st = _mechanical_energy(world, masses)
+        peak_gain = max(peak_gain, e - e0)
+        peak_speed = max(peak_speed, float(np.linalg.norm(st["linear_velocity"], axis=1).max()))
+    # 1e-3 J: float32 positions of ~1e4 J of potential energy (12 t at ~1.5 m) round at ~1e-3 J
+    assert peak_gain < 1e-3, f"gained {peak_gain:.3g} J (peak speed {peak_speed:.3g} m/s)"
+
+
+def _bounce(solver, speed, gap, gravity, restitution=1.0):
+    """A unit cube meeting a plane face-down at ``speed`` from ``gap`` above it: (the speed it
+    had just before touching, the fastest it moved away after)."""
+    g = -G if gravity else 0.0
+    body = box_body([0, 0, 0.5 + gap], linear_velocity=[0.0, 0.0, -speed], restitution=restitution)
+    d = scene_dict([body], statics=(dict(plane(), restitution=restitution),), gravity=(0.0, 0.0, g),
+                   solver=solver, iterations=10)
+    d["effects"] = ["friction", "restitution"]
+    world = World(Scene.from_dict(d), arch="cpu")
+    before, after, landed = 0.0, 0.0, False
+    for _ in range(120):
+        world.step(1)
+        vz = float(world.state()["linear_velocity"][0, 2])
+        if not landed and vz < 0.0:
+            before = max(before, -vz)
+        elif vz > 0.0:
+            landed = True
+            after = max(after, vz)
+    return before, after
+
+
+@pytest.mark.parametrize("solver", list(SOLVERS))
+@pytest.mark.parametrize("speed, gap, gravity", [(5.0, 0.3, False), (5.0, 0.3, True), (0.0, 1.0, True),
+                                                 (0.0, 2.0, True), (10.0, 0.5, True)])
+def test_every_solver_gives_the_same_bounce(solver, speed, gap, gravity):
+    """e = 1 against e = 1, from a gap larger than one step's travel (the impact arrives as a
+    speculative contact): every schedule sends the cube back within 5 % of its impact speed."""
+    before, after = _bounce(solver, speed, gap, gravity)
+    assert before > 3.0 and after == pytest.approx(before, rel=0.05), f"impact {before:.3f} m/s, rebound {after:.3f}"
+
+
+@pytest.mark.parametrize("iterations", [1, 7, 20])
+def test_the_step_impulse_sums_the_substeps(iterations):
+    """A box at rest takes m g dt from the plane each step, however many substeps share it
+    (it was reported as the last substep's impulse times their count)."""
+    world = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5])])), solver="pgs", iterations=iterations,
+                  arch="cpu")
+    world.track_impulses = True
+    world.step(120)
+    total = world.contacts(["impulse"])["impulse"][:, 0].sum()
+    # relative 1e-3: float32 sums of ~1e2 N s per point
+    assert total == pytest.approx(1000.0 * G / 60.0, rel=1e-3)
+
+
+def test_impulses_are_only_read_while_tracked():
+    world = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5])])), arch="cpu")
+    world.step(1)
+    assert "impulse" not in world.contacts()
+    with pytest.raises(Exception, match="track_impulses"):
+        world.contacts(["impulse"])
+
+
+def test_the_split_count_leaves_out_contacts_that_cannot_act():
+    """A box resting on a plane with a wall 1 cm beside it (a speculative contact that neither
+    touches, carries load nor closes within the step) is split in 4 (its ground corners), not 8."""
+    wall = {"shape": "box", "half_extents": [0.5, 0.5, 0.5], "position": [1.01, 0.0, 0.5], "static": True}
+    world = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5]), wall])), solver="mass-splitting",
+                  iterations=4, arch="cpu")
+    world.step(30)
+    c = world.contacts(["body_a", "body_b", "separation"])
+    touching_box = [(a == 0 or b == 0) for a, b in zip(c["body_a"], c["body_b"])]
+    assert sum(touching_box) == 8  # 4 ground corners and 4 speculative wall corners
+    assert int(world.buf.blocks.active_count[0]) == 4
