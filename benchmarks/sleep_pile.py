@@ -7,8 +7,10 @@ The scene runs in two worlds, one with the ``sleeping`` effect (``World.set_effe
 without. Both settle for ``--settle`` steps (compiling on their first steps), then each runs
 ``--steps`` further steps, timed as a whole from Python (``World.step``, synchronised: the
 kernels' launches are waited for), in alternating blocks of ten so that a change of the
-machine's load hits both alike. Prints the share of bodies asleep, both mean ms per step,
-their ratio, and the load average: the machine may be shared, so the figure is one run's.
+machine's load hits both alike; a third series wakes a small island before each of the
+sleeping world's blocks (the rest stays asleep). Prints the share of bodies asleep, the mean ms
+per step, the ratios, and the load average: the machine may be shared, so the figure is one
+run's.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import argparse
 import os
 import time
 
+import numpy as np
 import taichi as ti
 
 from sandbox import Scene, World, resolve_scene
@@ -51,10 +54,20 @@ def main() -> None:
         print(f"{name:9s} settled {args.settle} steps in {time.perf_counter() - t0:.1f} s (compile included)")
         worlds[name] = world
     settled = worlds["sleeping"].metrics()
-    seconds = {name: 0.0 for name in worlds}
+    seconds = {name: 0.0 for name in (*worlds, "one island")}
+    woken = []
+    labels = worlds["sleeping"].island_labels()
+    roots, sizes = np.unique(labels[labels >= 0], return_counts=True)
+    small = np.where(sizes <= 0.05 * len(labels), sizes, 0)  # islands of at most 5 % of the bodies
+    target = int(roots[np.argmax(small)] if small.any() else roots[np.argmin(sizes)])  # the largest of them
     for _ in range(0, args.steps, BLOCK):
         for name, world in worlds.items():
             seconds[name] += _timed(world, BLOCK)
+        sleeper = worlds["sleeping"]
+        sleeper.wake([target])  # a small island wakes and stays awake through the block (sleep_time)
+        seconds["one island"] += _timed(sleeper, BLOCK)
+        woken.append(sleeper.metrics()["awake_bodies"])
+        sleeper.step(int(round(sleeper.settings.sleep_time / sleeper.dt)) + 2)  # untimed: asleep again
     steps = BLOCK * ((args.steps + BLOCK - 1) // BLOCK)
     m = worlds["sleeping"].metrics()
     bodies = m["awake_bodies"] + m["sleeping_bodies"]
@@ -68,6 +81,8 @@ def main() -> None:
           f"{m['sleeping_bodies']} ({100 * asleep_share:.1f} %) after {args.settle + steps}")
     print(f"ms/step    sleeping {ms['sleeping']:.3f}   awake {ms['awake']:.3f}   over {steps} steps each")
     print(f"ratio      {100 * ms['sleeping'] / ms['awake']:.1f} % of the awake world's time per step")
+    print(f"one island awake ({min(woken)}-{max(woken)} bodies, the rest asleep): {ms['one island']:.3f} ms/step, "
+          f"{100 * ms['one island'] / ms['awake']:.1f} % of the awake world's")
     print(f"load avg   {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (1, 5, 15 min)")
 
 

@@ -78,11 +78,17 @@ class SleepBuffers:
         self.grid_full = False
         """Set by the host when the sleeping shapes' grid overflowed its entries: the buffers grow
         before the next collision (edits.grow_if_needed), as for the awake grid."""
+        self.idle = False
+        """The last step ran with no awake body and nothing has woken since: the next step
+        would change no bit (no awake shape to collide, no row, no body to move), so the
+        stepper skips it. Every change of the awake set clears it (``_note_grid``)."""
 
 
 def _note_grid(sl: SleepBuffers) -> None:
-    """After an event rebuilt the sleeping grid: did it fit?"""
+    """After an event changed the awake set and rebuilt the sleeping grid: did it fit? The
+    next step is not idle."""
     sl.grid_full = int(sl.status[GRID_ENTRIES]) > sl.grid.entry_capacity
+    sl.idle = False
 
 
 def islands_of(buf) -> Islands:
@@ -294,6 +300,7 @@ def after_step(buf, h: float, settings, labelled: bool = False) -> None:
     while status[SPLIT] > 0:  # labels not converged in ROUNDS rounds: more rounds, then decide again
         _rest_and_label(*args, False)
         status = sl.status.to_numpy()
+    sl.idle = int(status[AWAKE_ISLANDS]) == 0  # every dynamic body slept through this step
     if status[FALLING_COUNT] > 0:
         _fall_asleep(sl, buf.history, buf.manifold_cache, buf.shapes, buf.bodies, buf.bp, buf.errors,
                      settings.contact_margin)

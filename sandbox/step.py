@@ -73,7 +73,11 @@ class Stepper:
 
     def substep(self, c: Controls, h: float, watch: bool, first: bool, step_count: int) -> None:
         """One pass of the whole stage list with time step ``h`` [s]; ``watch``: breakable bodies'
-        impulses are monitored (``first``: the step's first substep clears their peaks)."""
+        impulses are monitored (``first``: the step's first substep clears their peaks). In a
+        sleeping world whose last step had no awake body, and nothing woke since, it does
+        nothing: that step would change no bit (sleep.SleepBuffers.idle)."""
+        if c.sleeping and self.edits.buf.sleep.idle:
+            return
         from .bodies import save_good_state, update_world_inertia
         from .integrate import check_velocities
         from .persistence import match_contacts, store_contacts

@@ -212,3 +212,24 @@ def test_a_rebuild_carries_the_sleeping_islands_over_with_their_new_indices():
             assert np.array_equal(now[k], old[k]), (i, k)
     world.step(1)
     assert world.metrics()["manifolds_reused"] == 6  # the two columns' pairs; the first column's cache was cleared
+
+
+def test_skipping_the_steps_of_an_all_asleep_world_changes_no_bit():
+    """Once a step ran with nothing awake, the next ones are skipped (SleepBuffers.idle) until
+    something wakes; a world forced to run them ends bit for bit the same."""
+    skipping, running = _world(), _world()
+
+    def step(n):
+        for _ in range(n):
+            running.buf.sleep.idle = False  # never idle: every step's kernels run
+            running.step(1)
+            skipping.step(1)
+
+    step(SETTLE + 20)
+    assert skipping.asleep().all() and skipping.buf.sleep.idle
+    skipping.set_velocity([4], linear=[0.5, 0.0, 0.0])
+    running.set_velocity([4], linear=[0.5, 0.0, 0.0])
+    assert not skipping.buf.sleep.idle  # the edit woke the middle column
+    step(60)
+    assert _same(skipping.state(), running.state())
+    assert skipping.metrics()["sleeping_bodies"] == running.metrics()["sleeping_bodies"]
