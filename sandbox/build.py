@@ -45,7 +45,9 @@ class HostWorld:
     cell_size: float
     static_entries: int
     n_dynamic: int
-    has_restitution: bool = False
+    has_restitution: bool = False  # some shape or plane has restitution > 0
+    has_friction: bool = False  # some shape or plane has a friction coefficient > 0
+    has_gyroscopic: bool = False  # some dynamic body's inertia is not a multiple of the identity
 
     def capacities(self, pairs: int | None = None, grid_entries: int | None = None, reserve_pieces: int = 0) -> Capacities:
         """Capacity classes for this world, with room for ``reserve_pieces`` fracture pieces (each a
@@ -180,7 +182,25 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
     host = HostWorld(body_arrays, arrays, planes, dyn, static_ids, polys, kinds, cell, 0, len(dyn))
     host.static_entries = _static_entry_count(host, margin)
     host.has_restitution = bool(np.any(arrays["restitution"] > 0) or np.any(planes["restitution"] > 0))
+    host.has_friction = bool(np.any(arrays["friction"] > 0) or np.any(planes["friction"] > 0))
+    host.has_gyroscopic = any_anisotropic(inertia[inv_mass > 0])
     return host
+
+
+ISOTROPY_TOLERANCE = 1e-6
+"""[1] An inertia within this fraction of a multiple of the identity counts as isotropic: its
+gyroscopic torque w x (I w) is below float32 rounding of the rotation update."""
+
+
+def any_anisotropic(inertias: np.ndarray) -> bool:
+    """Does any of these (N, 3, 3) body-frame inertias have a gyroscopic term (not a sphere's
+    or a cube's)?"""
+    if len(inertias) == 0:
+        return False
+    mean = np.trace(inertias, axis1=1, axis2=2) / 3.0
+    deviation = np.abs(inertias - mean[:, None, None] * np.eye(3)).max(axis=(1, 2))
+    return bool(np.any(deviation > ISOTROPY_TOLERANCE * np.abs(mean)))
+
 
 
 def _static_aabbs(host: HostWorld, margin: float):

@@ -85,11 +85,28 @@ def _skew(v: vec3) -> mat3:
 
 
 @ti.func
-def rotate_free(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia: ti.template(), h: ti.f32):
+def rotate_free(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia: ti.template(), h: ti.f32,
+                gyroscopic: ti.template()):
     """Midpoint/Cayley rotation step (module docstring): returns the new orientation
     and the new world angular velocity. The midpoint w solves
     G(w) = I w + (h/2) w x (I w) - L = 0 (the implicit midpoint rule for Euler's
-    equations, equivalent to L' = cay(-h w) L with w = I^-1 (L + L') / 2)."""
+    equations, equivalent to L' = cay(-h w) L with w = I^-1 (L + L') / 2).
+
+    ``gyroscopic`` False (effects.py: no dynamic body of the world has an anisotropic
+    inertia): L = I w is parallel to w, the world angular velocity stays as it is, and the
+    rotation is the Cayley step about it, with no Newton solve and no inertia products."""
+    q1 = q
+    w1 = omega
+    if ti.static(not gyroscopic):
+        wb = quat_rotate_inv(q, omega)
+        q1 = quat_normalize(quat_mul(q, quat_normalize(vec4(1.0, 0.5 * h * wb[0], 0.5 * h * wb[1], 0.5 * h * wb[2]))))
+    else:
+        q1, w1 = _rotate_gyroscopic(q, omega, inertia, inv_inertia, h)
+    return q1, w1
+
+
+@ti.func
+def _rotate_gyroscopic(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia: ti.template(), h: ti.f32):
     l0 = inertia @ quat_rotate_inv(q, omega)
     w0 = inv_inertia @ l0
     w = w0
@@ -127,7 +144,7 @@ def check_velocities(bodies: ti.template(), err: ti.template(), awake: ti.templa
 
 
 @ti.func
-def advance_pose(bodies: ti.template(), h: ti.f32, err: ti.template(), i: ti.i32):
+def advance_pose(bodies: ti.template(), gyroscopic: ti.template(), h: ti.f32, err: ti.template(), i: ti.i32):
     """Body i's position and orientation over ``h`` with its solved velocities."""
     if bodies.inv_mass[i] > 0.0:
         v = bodies.lin_vel[i]
@@ -138,7 +155,7 @@ def advance_pose(bodies: ti.template(), h: ti.f32, err: ti.template(), i: ti.i32
         dx = h * v
         x, rem = two_sum(bodies.pos[i], dx + bodies.pos_rem[i])
         bodies.moved[i] += dx
-        q, w1 = rotate_free(bodies.rot[i], w, bodies.inertia[i], bodies.inv_inertia[i], h)
+        q, w1 = rotate_free(bodies.rot[i], w, bodies.inertia[i], bodies.inv_inertia[i], h, gyroscopic)
         if any_nonfinite3(x) or any_nonfinite3(vec3(q[1], q[2], q[3])) or not (ti.abs(q[0]) <= 1.0):
             ti.atomic_or(err.flags[None], ERR_POSE)
             ti.atomic_min(err.body[None], i)
@@ -149,11 +166,13 @@ def advance_pose(bodies: ti.template(), h: ti.f32, err: ti.template(), i: ti.i32
 
 
 @ti.func
-def positions_loop(bodies: ti.template(), awake: ti.template(), h: ti.f32, err: ti.template()):
+def positions_loop(bodies: ti.template(), awake: ti.template(), gyroscopic: ti.template(), h: ti.f32,
+                   err: ti.template()):
     for k in range(body_total(bodies, awake)):
-        advance_pose(bodies, h, err, body_id(awake, k))
+        advance_pose(bodies, gyroscopic, h, err, body_id(awake, k))
 
 
 @ti.kernel
-def integrate_positions(bodies: ti.template(), awake: ti.template(), h: ti.f32, err: ti.template()):
-    positions_loop(bodies, awake, h, err)
+def integrate_positions(bodies: ti.template(), awake: ti.template(), gyroscopic: ti.template(), h: ti.f32,
+                        err: ti.template()):
+    positions_loop(bodies, awake, gyroscopic, h, err)

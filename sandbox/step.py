@@ -38,6 +38,7 @@ import numpy as np
 import taichi as ti
 
 from . import step_kernels
+from .effects import CompiledEffects
 from .errors import CapacityError, SimulationError
 from .solvers.schedule import Loop, Schedule
 
@@ -54,12 +55,10 @@ class Controls:
     schedule: Schedule
     iterations: int  # substeps of the soft step, one sweep each by default
     gravity: np.ndarray  # [m/s^2], shape (3,), float32
-    friction: bool  # compile-time: friction rows exist only if asked for
-    restitution: bool
+    effects: CompiledEffects  # compile-time switches (effects.py)
     track_impulses: bool  # each substep's impulses summed into the step's (World.track_impulses)
     record_residuals: bool  # a residual read after every biased sweep (forces the staged path)
     arch: str
-    sleeping: bool = False  # compile-time: resting islands sleep (sleep.py), the loops visit awake items only
 
 
 class Stepper:
@@ -76,7 +75,7 @@ class Stepper:
         impulses are monitored (``first``: the step's first substep clears their peaks). In a
         sleeping world whose last step had no awake body, and nothing woke since, it does
         nothing: that step would change no bit (sleep.SleepBuffers.idle)."""
-        if c.sleeping and self.edits.buf.sleep.idle:
+        if c.effects.sleeping and self.edits.buf.sleep.idle:
             return
         from .bodies import save_good_state, update_world_inertia
         from .integrate import check_velocities
@@ -86,7 +85,7 @@ class Stepper:
         from .solvers.rows import prepare_rows
 
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
-        awake = self.edits.awake_set(c.sleeping)
+        awake = self.edits.awake_set(c.effects.sleeping)
         k = c.iterations
         h_sub = h / k
         gravity = ti.math.vec3(*c.gravity)
@@ -96,13 +95,13 @@ class Stepper:
             b.errors.clear()
             update_world_inertia(b.bodies, awake)
         self.residual_history = []
-        b = self._collide_growing(fused, h, c.sleeping)
-        awake = self.edits.awake_set(c.sleeping)  # the buffers may have grown
+        b = self._collide_growing(fused, h, c.effects.sleeping)
+        awake = self.edits.awake_set(c.effects.sleeping)  # the buffers may have grown
         if watch and first:
             from .impact import clear_bodies
 
             clear_bodies(b.impacts, b.bodies)
-        bounce = c.restitution and self.edits.host.has_restitution
+        bounce = c.effects.restitution
         with p.stage("prepare"):
             params = row_params(s, h_sub, s.sweeps, h, c.gravity)
             if fused:
@@ -115,7 +114,8 @@ class Stepper:
                 match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
                 c.schedule.prepare(b, s, step_count)
         track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
-        loop = Loop(b, c.friction, s.warm_start > 0.0, track, gravity, h_sub, k, s.sweeps, awake)
+        loop = Loop(b, c.effects.friction, s.warm_start > 0.0, track, gravity, h_sub, k, s.sweeps, awake,
+                    c.effects.gyroscopic)
         staged = p.enabled or c.record_residuals  # a timer per stage, a residual read per sweep
         launch = "per-stage" if staged else c.schedule.launch(s, c.arch)
         if launch == "per-stage":
@@ -129,7 +129,7 @@ class Stepper:
             reduce_manifolds(b.impacts, b.contacts, b.rows)
         with p.stage("relax"):
             if bounce:
-                c.schedule.restitution(b, awake, c.friction, s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
+                c.schedule.restitution(b, awake, c.effects.friction, s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
             if fused:
                 step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, b.blocks,
                                          c.schedule.kind, k, awake, *rest_arguments(h, s))
@@ -140,7 +140,7 @@ class Stepper:
                 update_support(b.blocks, b.contacts, b.rows, b.bodies, awake, c.schedule.kind)
                 store_contacts(b.history, b.contacts, b.rows, b.shapes, k, awake)
         self._check_errors(b, step_count)
-        if c.sleeping:
+        if c.effects.sleeping:
             after_step(b, h, s, labelled=fused)
 
     def _collide_growing(self, fused: bool, h: float, sleeping: bool):
@@ -203,7 +203,7 @@ class Stepper:
                     if record_residuals:
                         self.residual_history.append(biased_residual_rms(b))
             with p.stage("integrate_positions"):
-                integrate_positions(b.bodies, awake, loop.h, b.errors)
+                integrate_positions(b.bodies, awake, loop.gyroscopic, loop.h, b.errors)
             with p.stage("relax"):
                 for j in range(sweeps):
                     then_warm = int(fold and i < k - 1 and j == sweeps - 1)

@@ -13,6 +13,7 @@ import numpy as np
 
 from . import backend
 from .edits import Edits, finite_vector
+from .effects import CompiledEffects, compile_effects
 from .errors import SandboxError
 from .fracture import FractureError
 from .profile import Profiler
@@ -144,6 +145,12 @@ class World:
         self.sleeping = bool(on)
 
     @property
+    def compiled_effects(self) -> CompiledEffects:
+        """The effects the step's kernels are compiled with now: those asked for that some body
+        can use, and those the bodies call for (effects.py)."""
+        return compile_effects(self.effects, self._edits.host)
+
+    @property
     def effects(self) -> tuple:
         flags = (("friction", self.friction), ("restitution", self.restitution), ("sleeping", self.sleeping))
         return tuple(e for e, on in flags if on)
@@ -242,8 +249,8 @@ class World:
             while self._pending and int(round(self._pending[0].time / self.dt)) <= self.step_count:
                 self.apply_event(self._pending.pop(0))
             watch = self._edits.watch_impacts and self.auto_fracture
-            controls = Controls(self._schedule, self.iterations, self.gravity, self.friction, self.restitution,
-                                self.track_impulses, self.record_residuals, self.arch, self.sleeping)
+            controls = Controls(self._schedule, self.iterations, self.gravity, self.compiled_effects,
+                                self.track_impulses, self.record_residuals, self.arch)
             for s in range(self.substeps):
                 self._stepper.substep(controls, h, watch, first=s == 0, step_count=self.step_count)
             if watch:

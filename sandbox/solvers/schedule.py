@@ -41,6 +41,7 @@ class Loop:
     iterations: int  # substeps per step
     sweeps: int  # sweeps per substep (Settings.sweeps)
     awake: object  # which bodies the body loops visit: awake.EVERY, or a sleeping world's awake lists
+    gyroscopic: bool = True  # the rotation solves the gyroscopic term (effects.py: an anisotropic body)
 
 
 class Schedule:
@@ -171,4 +172,4 @@ class Schedule:
         """The arguments every iteration-loop kernel of substep.py starts with."""
         b = loop.buf
         return (b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors, self.kind, self.visit, loop.friction,
-                loop.warm, loop.track, loop.awake, loop.gravity, loop.h)
+                loop.warm, loop.track, loop.awake, loop.gyroscopic, loop.gravity, loop.h)

@@ -1,0 +1,36 @@
+"""Which optional effects a world's kernels are compiled with: what a scene does not use costs
+nothing (house rule 8).
+
+An effect is either asked for by name in the scene's ``effects`` list (a user's choice:
+``friction``, ``restitution``, ``sleeping``) or follows from the bodies with no choice to make
+(``gyroscopic``: some dynamic body's inertia is anisotropic, so w x (I w) is not zero). An
+asked-for contact effect is still compiled away when no body can use it: friction when every
+friction coefficient is 0, restitution when every restitution is 0. The flags are
+compile-time switches of the step's kernels, so each combination compiles its own kernels
+on first use (Taichi caches them); the world re-derives them after every edit of its bodies.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+
+@dataclass(frozen=True)
+class CompiledEffects:
+    friction: bool  # friction rows are built and solved
+    restitution: bool  # the bounce pass runs after the substeps
+    gyroscopic: bool  # the rotation update solves the implicit gyroscopic term (integrate.rotate_free)
+    sleeping: bool  # resting islands sleep and the loops visit the awake bodies only (sleep.py)
+
+    def as_dict(self) -> dict[str, bool]:
+        return asdict(self)
+
+
+def compile_effects(asked: tuple, host) -> CompiledEffects:
+    """The switches for a world that asks for ``asked`` and holds ``host`` (build.HostWorld)."""
+    return CompiledEffects(
+        friction="friction" in asked and host.has_friction,
+        restitution="restitution" in asked and host.has_restitution,
+        gyroscopic=host.has_gyroscopic,
+        sleeping="sleeping" in asked,
+    )
