@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from sandbox.bodies import Bodies
+from sandbox.awake import EVERY
 from sandbox.broadphase import Broadphase, build_dynamic_grid, build_static_grid, compute_all_aabbs, find_pairs
 from sandbox.integrate import ErrorFlags
 from sandbox.scene.rotations import quat_to_matrix
@@ -123,8 +124,8 @@ class _Broadphase:
         return self.bp.aabb_min.to_numpy()[:n].astype(np.float64), self.bp.aabb_max.to_numpy()[:n].astype(np.float64)
 
     def pairs(self):
-        build_dynamic_grid(self.bp, self.shapes, self.bodies, MARGIN, DT, self.errors)
-        find_pairs(self.bp, self.shapes)
+        build_dynamic_grid(self.bp, self.shapes, self.bodies, MARGIN, DT, self.errors, EVERY)
+        find_pairs(self.bp, self.shapes, EVERY)
         total = int(self.bp.pair_total[None])
         a, b = self.bp.pair_a.to_numpy()[:total], self.bp.pair_b.to_numpy()[:total]
         return list(zip(a.tolist(), b.tolist()))
