@@ -154,49 +154,25 @@ def _copy_stored_point(st: ti.template(), to_half: ti.i32, to: ti.i32, from_half
     st.lam_t[to_half, to] = st.lam_t[from_half, o]
 
 
-@ti.func
-def _copy_pair_in(st: ti.template(), to_half: ti.i32, to: ti.i32, cache: ti.template(), ch: ti.i32, o: ti.i32):
-    st.m_partner[to_half, to] = cache.partner[ch, o]
-    st.m_count[to_half, to] = cache.count[ch, o]
-    st.m_gap[to_half, to] = cache.gap[ch, o]
-    st.m_rel_pos[to_half, to] = cache.rel_pos[ch, o]
-    st.m_rel_rot[to_half, to] = cache.rel_rot[ch, o]
-    st.m_normal[to_half, to] = cache.normal[ch, o]
-    st.m_normal_on_b[to_half, to] = cache.normal_on_b[ch, o]
-    for s in ti.static(range(MAX_POINTS)):
-        st.m_on_a[to_half, MAX_POINTS * to + s] = cache.on_a[ch, MAX_POINTS * o + s]
-        st.m_on_b[to_half, MAX_POINTS * to + s] = cache.on_b[ch, MAX_POINTS * o + s]
-        st.m_feature[to_half, MAX_POINTS * to + s] = cache.feature[ch, MAX_POINTS * o + s]
+PAIR_FIELDS = ("partner", "count", "gap", "rel_pos", "rel_rot", "normal", "normal_on_b")
+"""A manifold's per-pair fields: ``manifold_cache.ManifoldCache.<name>``, stored as ``m_<name>``."""
+POINT_SLOT_FIELDS = ("on_a", "on_b", "feature")
+"""Its per-point fields (MAX_POINTS slots per manifold), likewise."""
 
 
 @ti.func
-def _copy_stored_pair(st: ti.template(), to_half: ti.i32, to: ti.i32, from_half: ti.i32, o: ti.i32):
-    st.m_partner[to_half, to] = st.m_partner[from_half, o]
-    st.m_count[to_half, to] = st.m_count[from_half, o]
-    st.m_gap[to_half, to] = st.m_gap[from_half, o]
-    st.m_rel_pos[to_half, to] = st.m_rel_pos[from_half, o]
-    st.m_rel_rot[to_half, to] = st.m_rel_rot[from_half, o]
-    st.m_normal[to_half, to] = st.m_normal[from_half, o]
-    st.m_normal_on_b[to_half, to] = st.m_normal_on_b[from_half, o]
-    for s in ti.static(range(MAX_POINTS)):
-        st.m_on_a[to_half, MAX_POINTS * to + s] = st.m_on_a[from_half, MAX_POINTS * o + s]
-        st.m_on_b[to_half, MAX_POINTS * to + s] = st.m_on_b[from_half, MAX_POINTS * o + s]
-        st.m_feature[to_half, MAX_POINTS * to + s] = st.m_feature[from_half, MAX_POINTS * o + s]
-
-
-@ti.func
-def _restore_pair(st: ti.template(), h: ti.i32, o: ti.i32, cache: ti.template(), ch: ti.i32, to: ti.i32):
-    cache.partner[ch, to] = st.m_partner[h, o]
-    cache.count[ch, to] = st.m_count[h, o]
-    cache.gap[ch, to] = st.m_gap[h, o]
-    cache.rel_pos[ch, to] = st.m_rel_pos[h, o]
-    cache.rel_rot[ch, to] = st.m_rel_rot[h, o]
-    cache.normal[ch, to] = st.m_normal[h, o]
-    cache.normal_on_b[ch, to] = st.m_normal_on_b[h, o]
-    for s in ti.static(range(MAX_POINTS)):
-        cache.on_a[ch, MAX_POINTS * to + s] = st.m_on_a[h, MAX_POINTS * o + s]
-        cache.on_b[ch, MAX_POINTS * to + s] = st.m_on_b[h, MAX_POINTS * o + s]
-        cache.feature[ch, MAX_POINTS * to + s] = st.m_feature[h, MAX_POINTS * o + s]
+def _copy_pair(dst: ti.template(), dst_prefix: ti.template(), dh: ti.i32, to: ti.i32, src: ti.template(),
+               src_prefix: ti.template(), sh: ti.i32, o: ti.i32):
+    """Manifold ``o`` of half ``sh`` of ``src`` to slot ``to`` of half ``dh`` of ``dst``; the store
+    names its fields with the prefix "m_", the cache with none (the same copy serves saving,
+    moving within the store and restoring)."""
+    for name in ti.static(PAIR_FIELDS):
+        to_field, from_field = ti.static(getattr(dst, dst_prefix + name), getattr(src, src_prefix + name))
+        to_field[dh, to] = from_field[sh, o]
+    for name in ti.static(POINT_SLOT_FIELDS):
+        to_field, from_field = ti.static(getattr(dst, dst_prefix + name), getattr(src, src_prefix + name))
+        for s in ti.static(range(MAX_POINTS)):
+            to_field[dh, MAX_POINTS * to + s] = from_field[sh, MAX_POINTS * o + s]
 
 
 @ti.func
@@ -237,12 +213,12 @@ def save_sleepers(st: ti.template(), hist: ti.template(), cache: ti.template(), 
             for j in range(points):
                 _copy_points(st, new, p0 + j, hist, hist.shape_first[i] + j)
             for j in range(pairs):
-                _copy_pair_in(st, new, m0 + j, cache, ch, cache.first[ch, i] + j)
+                _copy_pair(st, "m_", new, m0 + j, cache, "", ch, cache.first[ch, i] + j)
         elif asleep[b]:
             for j in range(points):
                 _copy_stored_point(st, new, p0 + j, old, st.point_first[old, i] + j)
             for j in range(pairs):
-                _copy_stored_pair(st, new, m0 + j, old, st.pair_first[old, i] + j)
+                _copy_pair(st, "m_", new, m0 + j, st, "m_", old, st.pair_first[old, i] + j)
         st.point_first[new, i] = p0
         st.point_last[new, i] = p0 + points
         st.pair_first[new, i] = m0
@@ -299,7 +275,7 @@ def restore_wakers(st: ti.template(), hist: ti.template(), cache: ti.template(),
                 hist.lam_n[q] = st.lam_n[h, o]
                 hist.lam_t[q] = st.lam_t[h, o]
             for j in range(pairs):
-                _restore_pair(st, h, st.pair_first[h, i] + j, cache, ch, m0 + j)
+                _copy_pair(cache, "", ch, m0 + j, st, "m_", h, st.pair_first[h, i] + j)
             hist.shape_first[i] = p0
             hist.shape_last[i] = p0 + points
             cache.first[ch, i] = m0

@@ -166,25 +166,33 @@ def test_edits_and_changes_wake_what_they_touch():
     assert not world.asleep().any() and world.effects == ("friction", "restitution")
 
 
+RECORD_FIELDS = ("partner", "feature", "anchor", "lam_n", "lam_t")
+"""The warm-start records of a shape (persistence.ContactHistory)."""
+
+
+def _records(world, shapes) -> dict:
+    """Each shape's warm-start records now, field by field."""
+    hist = world.buf.history
+    first, last = hist.shape_first.to_numpy(), hist.shape_last.to_numpy()
+    stored = {k: getattr(hist, k).to_numpy() for k in RECORD_FIELDS}
+    return {i: {k: stored[k][first[i]:last[i]] for k in RECORD_FIELDS} for i in shapes}
+
+
 def test_a_woken_island_starts_from_its_stored_impulses_and_manifolds():
     """The records the columns fell asleep with come back exactly when they wake, so the first
     step after takes every manifold back from the cache instead of searching again."""
     world = _world()
-    hist = world.buf.history
-    fields = ("partner", "feature", "anchor", "lam_n", "lam_t")
     while not world.asleep().all():
         world.step(1)
-    first, last = hist.shape_first.to_numpy(), hist.shape_last.to_numpy()
-    stored = {k: getattr(hist, k).to_numpy() for k in fields}
     shapes = range(9)  # the boxes' shapes, one each
-    before = {i: {k: stored[k][first[i]:last[i]] for k in fields} for i in shapes}
+    before = _records(world, shapes)
     world.step(5)  # asleep: the steps find no contacts, and the history is emptied
-    assert world.metrics()["contacts"] == 0 and not np.any(hist.shape_last.to_numpy()[:9])
+    assert world.metrics()["contacts"] == 0 and not np.any(world.buf.history.shape_last.to_numpy()[:9])
     world.wake()
-    first, last = hist.shape_first.to_numpy(), hist.shape_last.to_numpy()
+    after = _records(world, shapes)
     for i in shapes:
-        for k in fields:
-            assert np.array_equal(getattr(hist, k).to_numpy()[first[i]:last[i]], before[i][k]), (i, k)
+        for k in RECORD_FIELDS:
+            assert np.array_equal(after[i][k], before[i][k]), (i, k)
     world.step(1)
     m = world.metrics()
     assert m["manifolds"] == 9 and m["manifolds_reused"] == 9
@@ -194,21 +202,18 @@ def test_a_rebuild_carries_the_sleeping_islands_over_with_their_new_indices():
     """Removing the first column's bottom box wakes that column only; the other two stay asleep
     through the rebuild, and their stored records follow their bodies down one index."""
     world = _world()
-    hist = world.buf.history
-    fields = ("partner", "feature", "anchor", "lam_n", "lam_t")
     while not world.asleep().all():
         world.step(1)
-    first, last = hist.shape_first.to_numpy(), hist.shape_last.to_numpy()
-    before = {i: {k: getattr(hist, k).to_numpy()[first[i]:last[i]] for k in fields} for i in range(3, 9)}
+    before = _records(world, range(3, 9))
     world.remove_bodies([0])
     assert list(world.asleep()) == [False] * 2 + [True] * 6
     world.wake()
-    first, last = hist.shape_first.to_numpy(), hist.shape_last.to_numpy()
+    after = _records(world, range(2, 8))  # one index down
     for i, old in before.items():
-        now = {k: getattr(hist, k).to_numpy()[first[i - 1]:last[i - 1]] for k in fields}
+        now = after[i - 1]
         partner = old["partner"]
         assert np.array_equal(now["partner"], np.where(partner >= 0, partner - 1, partner)), i  # planes stay < 0
-        for k in fields[1:]:
+        for k in RECORD_FIELDS[1:]:
             assert np.array_equal(now[k], old[k]), (i, k)
     world.step(1)
     assert world.metrics()["manifolds_reused"] == 6  # the two columns' pairs; the first column's cache was cleared
