@@ -7,7 +7,9 @@ process, each run from the same start; writes the table to docs/effects.md (--wr
 Variants: the scene as shipped; each effect it has switched off (friction, restitution,
 sleeping) or on (sleeping); the gyroscopic step flipped (the host flag: on for a scene whose
 bodies do not need it, off for one whose bodies do, so its cost shows either way; the
-motion of the latter is then wrong, only its time counts). Every world steps ``--settle``
+motion of the latter is then wrong, only its time counts); every body given damping
+(0.1 / s, linear and angular) or rolling and torsional friction (5 mm lever arms); and
+speculative contacts off. Every world steps ``--settle``
 steps untimed (compiling its kernels), then ``--steps`` timed one by one (synchronised); the
 median is reported, since a kernel compiled on first use inside the timed steps (the first
 island to fall asleep) would dominate a mean. Each variant changes the
@@ -18,35 +20,55 @@ beside the time. CPU figures on a shared machine are one run's: compare them as 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import platform
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import taichi as ti
 
-from sandbox import Scene, World, resolve_scene
+from sandbox import Scene, Settings, World, resolve_scene
 
 DOC = Path(__file__).resolve().parent.parent / "docs" / "effects.md"
 
 
-def variants(shipped: tuple) -> list[tuple[str, tuple, bool]]:
-    """(label, effects, force the gyroscopic step) for a scene shipped with ``shipped``."""
-    out = [("as shipped", shipped, False)]
+@dataclass(frozen=True)
+class Variant:
+    label: str
+    effects: tuple
+    flip_gyroscopic: bool = False
+    bodies: tuple = ()  # (key, value) set on every dynamic body (scene.spec.RESISTANCE_KEYS)
+    settings: tuple = ()  # (key, value) of settings.Settings
+
+
+def variants(shipped: tuple) -> list[Variant]:
+    """The variants of a scene shipped with the effects ``shipped``."""
+    out = [Variant("as shipped", shipped)]
     for effect in ("friction", "restitution", "sleeping"):
         if effect in shipped:
-            out.append((f"without {effect}", tuple(e for e in shipped if e != effect), False))
+            out.append(Variant(f"without {effect}", tuple(e for e in shipped if e != effect)))
     if "sleeping" not in shipped:
-        out.append(("with sleeping", shipped + ("sleeping",), False))
-    out.append(("gyroscopic step flipped", shipped, True))
+        out.append(Variant("with sleeping", shipped + ("sleeping",)))
+    out.append(Variant("gyroscopic step flipped", shipped, flip_gyroscopic=True))
+    out.append(Variant("with damping", shipped, bodies=(("linear_damping", 0.1), ("angular_damping", 0.1))))
+    out.append(Variant("with rolling friction", shipped,
+                       bodies=(("rolling_friction", 0.005), ("torsional_friction", 0.005))))
+    out.append(Variant("without speculative contacts", shipped, settings=(("speculative_contacts", False),)))
     return out
 
 
-def run(scene_name: str, effects: tuple, flip_gyroscopic: bool, settle: int, steps: int) -> dict:
+def run(scene_name: str, variant: Variant, settle: int, steps: int) -> dict:
     scene = Scene.load(resolve_scene(scene_name))
-    world = World(scene, arch="cpu")
-    world.set_effects(effects)
+    if variant.bodies:
+        changed = [dataclasses.replace(b, **dict(variant.bodies)) if not b.static else b for b in scene.bodies]
+        scene = dataclasses.replace(scene, bodies=changed)
+    world = World(scene, arch="cpu", settings=Settings().replace(**scene.world.settings_given(),
+                                                                 **dict(variant.settings)))
+    world.set_effects(variant.effects)
+    flip_gyroscopic = variant.flip_gyroscopic
     if flip_gyroscopic:  # the benchmark's switch: on where no body needs it, off where some do
         world._edits.host.has_gyroscopic = not world._edits.host.has_gyroscopic
     world.step(settle)
@@ -77,8 +99,9 @@ def main() -> None:
     for name in args.scenes.split(","):
         shipped = tuple(Scene.load(resolve_scene(name)).effects)
         base = None
-        for label, effects, forced in variants(shipped):
-            row = run(name, effects, forced, args.settle, args.steps)
+        for variant in variants(shipped):
+            label = variant.label
+            row = run(name, variant, args.settle, args.steps)
             base = base or row["ms"]
             on = ", ".join(k for k, v in row["compiled"].items() if v) or "none"
             line = (f"| {name} | {label} | {on} | {row['ms']:.2f} | {100 * row['ms'] / base:.0f} % | "

@@ -54,6 +54,8 @@ class Bodies:
         self.good_ang_vel = ti.Vector.field(3, ti.f32, c)
         self.support = ti.field(ti.f32, c)  # [N] averaged force holding the body up (contact_spring.py)
         self.support_points = ti.field(ti.i32, c)  # contact points holding it up, last step
+        self.damping = ti.Vector.field(2, ti.f32, c)  # [1/s] linear, angular (scene.spec.RESISTANCE_KEYS)
+        self.rolling = ti.Vector.field(2, ti.f32, c)  # [m] rolling, torsional friction lever arms
 
     def upload(self, arrays: dict[str, np.ndarray]) -> None:
         """Write host arrays (N rows each) into the first N slots. Dynamic bodies keep
@@ -65,6 +67,8 @@ class Bodies:
         pos64 = np.asarray(arrays["pos"], dtype=np.float64)
         columns = {name: arrays[name] for name in ("inv_mass", "inertia", "inv_inertia", "pos", "rot", "lin_vel",
                                                    "ang_vel")}
+        for name in ("damping", "rolling"):  # motion resistances: none unless given (scene.spec.RESISTANCE_KEYS)
+            columns[name] = arrays.get(name, np.zeros((n, 2)))
         columns["pos_rem"] = (pos64 - pos64.astype(np.float32)) * (np.asarray(arrays["inv_mass"]) > 0)[:, None]
         for name, value in columns.items():
             field = getattr(self, name)

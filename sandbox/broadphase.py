@@ -161,14 +161,29 @@ def shape_world_aabb(shapes: ti.template(), bodies: ti.template(), i: ti.i32, ma
     return center - ext, center + ext
 
 
+SPECULATIVE_OFF = -1.0
+"""The ``speculative`` switch of a world without speculative contacts (compiled away)."""
+
+
+def speculation(settings) -> float:
+    """The collision kernels' ``speculative`` switch (a compile-time float): the speed [m/s] above
+    which a body's bounds and margins grow by its motion, or SPECULATIVE_OFF."""
+    return float(settings.speculative_speed) if settings.speculative_contacts else SPECULATIVE_OFF
+
+
 @ti.func
-def swept_distance(shapes: ti.template(), bodies: ti.template(), i: ti.i32, h: ti.f32) -> ti.f32:
-    """How far any point of shape i may move in time h [m] (0 for static shapes)."""
-    b = shapes.body[i]
+def swept_distance(shapes: ti.template(), bodies: ti.template(), i: ti.i32, h: ti.f32,
+                   speculative: ti.template()) -> ti.f32:
+    """How far any point of shape i may move in time h [m] (0 for static shapes), when its speed
+    bound exceeds ``speculative`` [m/s]; always 0, compiled away, with SPECULATIVE_OFF."""
     d = 0.0
-    if bodies.inv_mass[b] > 0.0:
-        r = shapes.local_pos[i].norm() + shapes.bound[i]
-        d = h * (bodies.lin_vel[b].norm() + bodies.ang_vel[b].norm() * r)
+    if ti.static(speculative >= 0.0):
+        b = shapes.body[i]
+        if bodies.inv_mass[b] > 0.0:
+            r = shapes.local_pos[i].norm() + shapes.bound[i]
+            speed = bodies.lin_vel[b].norm() + bodies.ang_vel[b].norm() * r
+            if speed > speculative:
+                d = h * speed
     return d
 
 
@@ -204,7 +219,7 @@ def _fits_grid(lo: vec3, hi: vec3, cell: ti.f32) -> ti.i32:
 
 @ti.func
 def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
-                             dt: ti.f32, err: ti.template(), awake: ti.template()):
+                             dt: ti.f32, speculative: ti.template(), err: ti.template(), awake: ti.template()):
     """``dt`` [s] is the step: each AABB also covers where its shape can get to during the step
     (|v| dt + |w| r dt), so fast bodies find their partners and get speculative contacts
     instead of tunnelling. Bounds too large for the grids raise ERR_BOUNDS (MAX_SPAN_CELLS).
@@ -214,7 +229,7 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
     cell = bp.cell_size[None]
     for k in range(n):
         i = shape_id(shapes, awake, k)
-        lo, hi = shape_world_aabb(shapes, bodies, i, margin + swept_distance(shapes, bodies, i, dt))
+        lo, hi = shape_world_aabb(shapes, bodies, i, margin + swept_distance(shapes, bodies, i, dt, speculative))
         if not _fits_grid(lo, hi, cell):
             ti.atomic_or(err.flags[None], ERR_BOUNDS)
             ti.atomic_min(err.body[None], shapes.body[i])
@@ -267,8 +282,8 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
 
 @ti.kernel
 def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
-                       dt: ti.f32, err: ti.template(), awake: ti.template()):
-    build_dynamic_grid_loops(bp, shapes, bodies, margin, dt, err, awake)
+                       dt: ti.f32, speculative: ti.template(), err: ti.template(), awake: ti.template()):
+    build_dynamic_grid_loops(bp, shapes, bodies, margin, dt, speculative, err, awake)
 
 
 @ti.func

@@ -48,6 +48,8 @@ class HostWorld:
     has_restitution: bool = False  # some shape or plane has restitution > 0
     has_friction: bool = False  # some shape or plane has a friction coefficient > 0
     has_gyroscopic: bool = False  # some dynamic body's inertia is not a multiple of the identity
+    has_damping: bool = False  # some dynamic body has linear or angular damping > 0
+    has_rolling_friction: bool = False  # some body has rolling or torsional friction > 0
 
     def capacities(self, pairs: int | None = None, grid_entries: int | None = None, reserve_pieces: int = 0) -> Capacities:
         """Capacity classes for this world, with room for ``reserve_pieces`` fracture pieces (each a
@@ -96,6 +98,8 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
     rot = np.tile([1.0, 0.0, 0.0, 0.0], (n_bodies, 1))
     lin_vel = np.zeros((n_bodies, 3))
     ang_vel = np.zeros((n_bodies, 3))
+    damping = np.zeros((n_bodies, 2))  # [1/s] linear, angular (dynamic bodies)
+    rolling = np.zeros((n_bodies, 2))  # [m] rolling, torsional
     dynamic_shapes = []
     for bi, body in enumerate(scene.bodies):
         pos[bi] = body.position
@@ -110,6 +114,8 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
             inv_inertia[bi] = np.linalg.inv(body.inertia)
             lin_vel[bi] = body.linear_velocity
             ang_vel[bi] = body.angular_velocity
+            damping[bi] = body.linear_damping, body.angular_damping
+        rolling[bi] = body.rolling_friction, body.torsional_friction
         for sh in body.shapes:
             lq = np.asarray(sh.local_orientation, dtype=np.float64)
             lq = lq / np.linalg.norm(lq)
@@ -170,7 +176,7 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
         "restitution": np.asarray([p.restitution for p in scene.planes], np.float32),
     }
     body_arrays = {"inv_mass": inv_mass, "inertia": inertia, "inv_inertia": inv_inertia, "pos": pos, "rot": rot,
-                   "lin_vel": lin_vel, "ang_vel": ang_vel}
+                   "lin_vel": lin_vel, "ang_vel": ang_vel, "damping": damping, "rolling": rolling}
     dyn = np.asarray(dynamic_shapes, np.int32)
     margin = settings.contact_margin
     diam = 2.0 * arrays["aabb_half"][dyn].max(axis=1) + 2.0 * margin if len(dyn) else np.array([1.0])
@@ -184,6 +190,8 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
     host.has_restitution = bool(np.any(arrays["restitution"] > 0) or np.any(planes["restitution"] > 0))
     host.has_friction = bool(np.any(arrays["friction"] > 0) or np.any(planes["friction"] > 0))
     host.has_gyroscopic = any_anisotropic(inertia[inv_mass > 0])
+    host.has_damping = bool(np.any(damping > 0))
+    host.has_rolling_friction = bool(np.any(rolling > 0))
     return host
 
 

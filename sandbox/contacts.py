@@ -137,7 +137,8 @@ def partner_material(shapes: ti.template(), partner: ti.i32):
 @ti.func
 def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
                         pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
-                        reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(), awake: ti.template()):
+                        speculative: ti.template(), reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(),
+                        awake: ti.template()):
     """Narrowphase over every candidate pair, then pack the points and manifolds.
 
     The pair's margin is the speculative distance (capped at a quarter of the smaller
@@ -163,9 +164,9 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
         else:
             b = shape_pose(shapes, bodies, j)
         small = ti.min(a.bound, b.bound)
-        swept = swept_distance(shapes, bodies, i, h)
+        swept = swept_distance(shapes, bodies, i, h, speculative)
         if j >= 0:
-            swept += swept_distance(shapes, bodies, j, h)
+            swept += swept_distance(shapes, bodies, j, h, speculative)
         pair_margin = ti.min(margin, 0.25 * small) + swept
         c.raw_slop[p] = ti.min(slop, SLOP_FRACTION * small)
         c.raw_size[p] = small
@@ -236,5 +237,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
 @ti.kernel
 def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
                   pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
-                  reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(), awake: ti.template()):
-    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_sin, kinds, awake)
+                  speculative: ti.template(), reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(),
+                  awake: ti.template()):
+    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, speculative, reuse_d2, reuse_sin, kinds,
+                        awake)

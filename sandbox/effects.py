@@ -2,10 +2,13 @@
 nothing (house rule 8).
 
 An effect is either asked for by name in the scene's ``effects`` list (a user's choice:
-``friction``, ``restitution``, ``sleeping``) or follows from the bodies with no choice to make
-(``gyroscopic``: some dynamic body's inertia is anisotropic, so w x (I w) is not zero). An
-asked-for contact effect is still compiled away when no body can use it: friction when every
-friction coefficient is 0, restitution when every restitution is 0. The flags are
+``friction``, ``restitution``, ``sleeping``), follows from the bodies with no choice to make
+(``gyroscopic``: some dynamic body's inertia is anisotropic, so w x (I w) is not zero;
+``damping``: some dynamic body has linear or angular damping), or from a world setting
+(``speculative``: Settings.speculative_contacts). An asked-for contact effect is still
+compiled away when no body can use it: friction when every friction coefficient is 0,
+restitution when every restitution is 0, rolling and torsional friction (with the friction
+effect) when every body's rolling and torsional coefficients are 0. The flags are
 compile-time switches of the step's kernels, so each combination compiles its own kernels
 on first use (Taichi caches them); the world re-derives them after every edit of its bodies.
 """
@@ -21,16 +24,23 @@ class CompiledEffects:
     restitution: bool  # the bounce pass runs after the substeps
     gyroscopic: bool  # the rotation update solves the implicit gyroscopic term (integrate.rotate_free)
     sleeping: bool  # resting islands sleep and the loops visit the awake bodies only (sleep.py)
+    damping: bool = False  # the position update damps velocities (integrate.advance_pose)
+    rolling_friction: bool = False  # torsional and rolling rows are solved (rows.solve_rolling)
+    speculative: bool = True  # AABBs and pair margins grow by the distance a shape can move (broadphase.py)
 
     def as_dict(self) -> dict[str, bool]:
         return asdict(self)
 
 
-def compile_effects(asked: tuple, host) -> CompiledEffects:
-    """The switches for a world that asks for ``asked`` and holds ``host`` (build.HostWorld)."""
+def compile_effects(asked: tuple, host, settings) -> CompiledEffects:
+    """The switches for a world that asks for ``asked``, holds ``host`` (build.HostWorld) and
+    runs with ``settings`` (settings.Settings)."""
     return CompiledEffects(
         friction="friction" in asked and host.has_friction,
         restitution="restitution" in asked and host.has_restitution,
         gyroscopic=host.has_gyroscopic,
         sleeping="sleeping" in asked,
+        damping=host.has_damping,
+        rolling_friction="friction" in asked and host.has_rolling_friction,
+        speculative=settings.speculative_contacts,
     )

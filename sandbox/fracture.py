@@ -55,7 +55,7 @@ from .polytope import clip_convex
 from .scene.hull import HullError, usable_hull
 from .scene.massprops import MassProperties, combine, hull_mass_properties, shape_mass_properties, transformed
 from .scene.rotations import quat_to_matrix
-from .scene.spec import MAX_PIECES, BodySpec, ShapeSpec
+from .scene.spec import MAX_PIECES, RESISTANCE_KEYS, BodySpec, ShapeSpec
 
 EXACT_TOLERANCE = 1e-9
 """[1] Pieces whose summed mass, centre of mass (relative to the body's size) and inertia
@@ -265,6 +265,7 @@ def _assemble(body: BodySpec, parts: list, exact: bool, impulse: float) -> Fract
             static=False,
             friction=body.friction,
             restitution=body.restitution,
+            **{key: getattr(body, key) for key in RESISTANCE_KEYS},
             name=f"{body.name}.{p}" if body.name else None,
         ))
     return FractureResult(out, exact, com_offset, inertia_mismatch, mass_mismatch)

@@ -23,6 +23,20 @@ class Settings:
     count in the mass-splitting divisor n_b. Per pair it is capped at a quarter
     of the smaller shape's bounding radius so millimetre bodies stay sane."""
 
+    speculative_contacts: bool = True
+    """Speculative contacts (continuous collision, Catto's speculative CCD): a moving body's
+    bounds and its pairs' contact margins grow by how far it can move in the step (|v| dt +
+    |w| r dt), so a fast body meets what lies in its path as a contact with a gap instead of
+    passing through it. False compiles that away (effects.py): margins are ``contact_margin``
+    only, and a body moving more than its size in a step can tunnel. Scene key:
+    ``[world] speculative_contacts``."""
+
+    speculative_speed: float = 0.0
+    """[m/s] With speculative contacts, only bodies whose speed bound (|v| + |w| r) exceeds this
+    get the swept growth; slower ones keep the plain ``contact_margin``, which already covers
+    what they can move in a step (so the growth would only add contacts). 0: every moving body
+    (the default). Scene key: ``[world] speculative_speed``."""
+
     slop: float = 0.0005
     """[m] Penetration tolerated without position correction. Lower tightens
     resting overlap; higher lets stacks sink visibly (a 20-box stack sinks by
@@ -180,7 +194,7 @@ class Settings:
 
             raise SandboxError(f"unknown iteration_launch {self.iteration_launch!r}; choose one of "
                                f"{', '.join(ITERATION_LAUNCHES)}")
-        for name in ("sleep_linear_speed", "sleep_angular_speed", "sleep_time"):
+        for name in ("sleep_linear_speed", "sleep_angular_speed", "sleep_time", "speculative_speed"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value)
                                                                                      and value >= 0.0):

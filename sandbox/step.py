@@ -40,6 +40,9 @@ import taichi as ti
 from . import step_kernels
 from .effects import CompiledEffects
 from .errors import CapacityError, SimulationError
+from .broadphase import speculation
+from .integrate import motion_switch
+from .solvers.rows import contact_switch
 from .solvers.schedule import Loop, Schedule
 
 MAX_GROWTH_RETRIES = 6
@@ -114,8 +117,8 @@ class Stepper:
                 match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
                 c.schedule.prepare(b, s, step_count)
         track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
-        loop = Loop(b, c.effects.friction, s.warm_start > 0.0, track, gravity, h_sub, k, s.sweeps, awake,
-                    c.effects.gyroscopic)
+        loop = Loop(b, contact_switch(c.effects), s.warm_start > 0.0, track, gravity, h_sub, k, s.sweeps, awake,
+                    motion_switch(c.effects))
         staged = p.enabled or c.record_residuals  # a timer per stage, a residual read per sweep
         launch = "per-stage" if staged else c.schedule.launch(s, c.arch)
         if launch == "per-stage":
@@ -129,7 +132,7 @@ class Stepper:
             reduce_manifolds(b.impacts, b.contacts, b.rows)
         with p.stage("relax"):
             if bounce:
-                c.schedule.restitution(b, awake, c.effects.friction, s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
+                c.schedule.restitution(b, awake, contact_switch(c.effects), s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
             if fused:
                 step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, b.blocks,
                                          c.schedule.kind, k, awake, *rest_arguments(h, s))
@@ -156,7 +159,7 @@ class Stepper:
             awake = self.edits.awake_set(sleeping)
             if fused:
                 step_kernels.begin_and_collide(b.bodies, b.errors, b.bp, b.shapes, b.contacts, b.pool,
-                                               b.manifold_cache, st.contact_margin, st.slop, h,
+                                               b.manifold_cache, st.contact_margin, st.slop, h, speculation(st),
                                                *st.manifold_reuse_bounds(), self.edits.kinds, awake)
             else:
                 self._collide(h, awake)
@@ -174,11 +177,11 @@ class Stepper:
         b, p, st = self.edits.buf, self.profiler, self.edits.settings
         margin = st.contact_margin
         with p.stage("broadphase"):
-            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, h, b.errors, awake)
+            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, h, speculation(st), b.errors, awake)
             find_pairs(b.bp, b.shapes, awake)
         with p.stage("narrowphase"):
             collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, st.slop, h,
-                          *st.manifold_reuse_bounds(), self.edits.kinds, awake)
+                          speculation(st), *st.manifold_reuse_bounds(), self.edits.kinds, awake)
 
     def _iterate_by_stage(self, schedule: Schedule, loop: Loop, record_residuals: bool) -> None:
         """The iteration loop a launch per phase, each in its stage. With warm starting, gravity
@@ -193,7 +196,7 @@ class Stepper:
             if i == 0 or not fold:
                 if loop.warm:
                     with p.stage("iterate"):
-                        schedule.warm_start(b, awake, loop.gravity, loop.h)
+                        schedule.warm_start(b, awake, loop.friction, loop.gravity, loop.h)
                 else:
                     with p.stage("integrate_velocities"):
                         integrate_velocities(b.bodies, awake, loop.gravity, loop.h)
@@ -203,7 +206,7 @@ class Stepper:
                     if record_residuals:
                         self.residual_history.append(biased_residual_rms(b))
             with p.stage("integrate_positions"):
-                integrate_positions(b.bodies, awake, loop.gyroscopic, loop.h, b.errors)
+                integrate_positions(b.bodies, awake, loop.motion, loop.h, b.errors)
             with p.stage("relax"):
                 for j in range(sweeps):
                     then_warm = int(fold and i < k - 1 and j == sweeps - 1)

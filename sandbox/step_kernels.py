@@ -25,16 +25,18 @@ from .solvers.rows import prepare_row, respond_row, set_row_params
 @ti.kernel
 def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template(), shapes: ti.template(),
                       c: ti.template(), pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32,
-                      h: ti.f32, reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(), awake: ti.template()):
+                      h: ti.f32, speculative: ti.template(), reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(),
+                      awake: ti.template()):
     """Save the good state, clear the error flags, world inertias, broadphase, narrowphase
     (``awake``: of every body, or of a sleeping world's awake ones; awake.py)."""
     err.flags[None] = 0
     err.body[None] = BIG
     save_good_state_loops(bodies, awake)
     update_world_inertia_loops(bodies, awake)
-    build_dynamic_grid_loops(bp, shapes, bodies, margin, h, err, awake)
+    build_dynamic_grid_loops(bp, shapes, bodies, margin, h, speculative, err, awake)
     find_pairs_loops(bp, shapes, awake)
-    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, reuse_d2, reuse_sin, kinds, awake)
+    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, speculative, reuse_d2, reuse_sin, kinds,
+                        awake)
 
 
 @ti.kernel

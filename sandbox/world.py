@@ -39,8 +39,8 @@ class World:
         self.scene = scene
         settings_given = settings is not None
         settings = settings or Settings()
-        if scene.world.contact_hertz is not None and not settings_given:
-            settings = settings.replace(contact_hertz=float(scene.world.contact_hertz))
+        if not settings_given:  # the scene's own settings, where it gives any
+            settings = settings.replace(**scene.world.settings_given())
         self.dt = float(scene.world.dt)
         self.substeps = int(scene.world.substeps)
         self.gravity = np.asarray(scene.world.gravity, dtype=np.float32)
@@ -148,7 +148,7 @@ class World:
     def compiled_effects(self) -> CompiledEffects:
         """The effects the step's kernels are compiled with now: those asked for that some body
         can use, and those the bodies call for (effects.py)."""
-        return compile_effects(self.effects, self._edits.host)
+        return compile_effects(self.effects, self._edits.host, self.settings)
 
     @property
     def effects(self) -> tuple:

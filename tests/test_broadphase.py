@@ -124,7 +124,7 @@ class _Broadphase:
         return self.bp.aabb_min.to_numpy()[:n].astype(np.float64), self.bp.aabb_max.to_numpy()[:n].astype(np.float64)
 
     def pairs(self):
-        build_dynamic_grid(self.bp, self.shapes, self.bodies, MARGIN, DT, self.errors, EVERY)
+        build_dynamic_grid(self.bp, self.shapes, self.bodies, MARGIN, DT, 0.0, self.errors, EVERY)
         find_pairs(self.bp, self.shapes, EVERY)
         total = int(self.bp.pair_total[None])
         a, b = self.bp.pair_a.to_numpy()[:total], self.bp.pair_b.to_numpy()[:total]

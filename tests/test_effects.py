@@ -29,12 +29,14 @@ def test_frictionless_spheres_compile_neither_friction_rows_nor_the_gyroscopic_s
 def test_an_effect_is_compiled_in_where_a_body_uses_it():
     cubes = [box_body([0.0, 0.0, 0.5])]
     assert _world(cubes).compiled_effects.as_dict() == {"friction": True, "restitution": False,
-                                                        "gyroscopic": False, "sleeping": False}
+                                                        "gyroscopic": False, "sleeping": False, "damping": False,
+                                                        "rolling_friction": False, "speculative": True}
     plank = [box_body([0.0, 0.0, 0.5], half=(1.0, 0.25, 0.1))]  # anisotropic inertia
     assert _world(plank).compiled_effects.gyroscopic
     bouncy = [box_body([0.0, 0.0, 0.5], restitution=0.5)]
     assert _world(bouncy, effects=("restitution", "sleeping")).compiled_effects.as_dict() == {
-        "friction": False, "restitution": True, "gyroscopic": False, "sleeping": True}
+        "friction": False, "restitution": True, "gyroscopic": False, "sleeping": True, "damping": False,
+        "rolling_friction": False, "speculative": True}
 
 
 def test_adding_a_body_recompiles_for_what_it_needs():

@@ -15,7 +15,7 @@ from .massprops import combine, part_mass_properties
 from .mesh_reader import load_mesh_file, read_mesh_body
 from .rotations import quat_to_matrix
 from .schema import Reader
-from .spec import DEFAULT_PIECES, MAX_PIECES, BodySpec, ShapeSpec
+from .spec import DEFAULT_PIECES, MAX_PIECES, RESISTANCE_KEYS, BodySpec, ShapeSpec
 
 
 def _read_shape(r: Reader, kind: str) -> ShapeSpec:
@@ -114,11 +114,18 @@ def read_solid(r: Reader, *, static_section: bool) -> BodySpec:
         static=static,
         friction=r.real("friction", DEFAULT_FRICTION, nonnegative=True),
         restitution=r.real("restitution", DEFAULT_RESTITUTION, low=0.0, high=1.0),
+        **read_resistances(r),
         name=name,
         breakable=breakable,
         strength=strength,
         pieces=pieces,
     )
+
+
+def read_resistances(r: Reader) -> dict[str, float]:
+    """The motion resistances (spec.RESISTANCE_KEYS) the entry gives, each >= 0, default 0;
+    the entry's key check has already refused those its table does not take."""
+    return {key: r.real(key, 0.0, nonnegative=True) for key in RESISTANCE_KEYS}
 
 
 def _read_breakable(r: Reader, static: bool) -> tuple[bool, float | None, int]:

@@ -14,6 +14,7 @@ from .hull import HullError
 from .keys import (DEFAULT_DENSITY, DEFAULT_FRICTION, DEFAULT_RESTITUTION, GENERATOR_KEYS, GENERATOR_KINDS,
                    GENERATOR_REQUIRED, MAX_BODIES)
 from .schema import Reader
+from .body_reader import read_resistances
 from .spec import BodySpec
 
 
@@ -27,6 +28,7 @@ def _read_material(r: Reader) -> generators.Material:
         mass=r.real("mass", None, positive=True),
         friction=r.real("friction", DEFAULT_FRICTION, nonnegative=True),
         restitution=r.real("restitution", DEFAULT_RESTITUTION, low=0.0, high=1.0),
+        **read_resistances(r),
         name=name,
     )
 

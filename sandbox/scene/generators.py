@@ -27,7 +27,7 @@ from .massprops import (
     sphere_mass_properties,
 )
 from .rotations import IDENTITY, quat_to_matrix, random_quaternions
-from .spec import BodySpec, ShapeSpec
+from .spec import RESISTANCE_KEYS, BodySpec, ShapeSpec
 
 GRID_SHAPES = ("box", "sphere", "capsule", "hull")
 WALL_DIRECTIONS = ("x", "y")
@@ -53,6 +53,10 @@ class Material:
     mass: float | None = None  # [kg] per body, overrides density
     friction: float = 0.5
     restitution: float = 0.0
+    linear_damping: float = 0.0  # [1/s] (spec.RESISTANCE_KEYS)
+    angular_damping: float = 0.0  # [1/s]
+    rolling_friction: float = 0.0  # [m]
+    torsional_friction: float = 0.0  # [m]
     name: str | None = None  # name prefix
 
 
@@ -77,6 +81,7 @@ def _make_bodies(shapes, positions, orientations, masses, inertias, material: Ma
             static=False,
             friction=material.friction,
             restitution=material.restitution,
+            **{key: getattr(material, key) for key in RESISTANCE_KEYS},
             name=labels[i],
         )
         for i in range(len(shapes))

@@ -8,6 +8,7 @@ description of every key is ``scenes/README.md``.
 from __future__ import annotations
 
 from . import timeline
+from .spec import RESISTANCE_KEYS
 from ..solvers import SOLVERS  # the registry itself (Taichi-free), so names and options cannot drift
 
 SOLVER_NAMES = tuple(SOLVERS)
@@ -38,7 +39,7 @@ MAX_HEIGHTFIELD_CELLS = 2048
 """Per axis; 2048 x 2048 cells is 8.4 million triangles."""
 
 TOP_KEYS = ("description", "world", "solver", "static", "body", "generate", "event", "effects")
-WORLD_KEYS = ("gravity", "dt", "substeps", "contact_hertz", "duration")
+WORLD_KEYS = ("gravity", "dt", "substeps", "contact_hertz", "duration", "speculative_contacts", "speculative_speed")
 SOLVER_OPTION_KEYS = ("shuffle", "relaxation", "seed")
 SOLVER_KEYS = ("name", "iterations") + SOLVER_OPTION_KEYS
 SHAPE_KEYS = {
@@ -52,10 +53,11 @@ SHAPE_KEYS = {
 SHAPE_REQUIRED = {"box": ("half_extents",), "sphere": ("radius",), "capsule": ("radius", "half_height"),
                   "hull": (), "compound": ("parts",), "mesh": ()}
 BODY_KEYS = ("shape", "position", "orientation", "linear_velocity", "angular_velocity", "density", "mass",
-             "friction", "restitution", "name", "static", "breakable", "strength", "pieces")
+             "friction", "restitution", "name", "static", "breakable", "strength", "pieces") + RESISTANCE_KEYS
 DECOMPOSITION_KEYS = ("threshold", "max_hulls", "seed", "max_hull_vertices", "timeout", "on_failure")
 MAX_SEED = 2**31 - 1
-STATIC_SOLID_KEYS = ("shape", "position", "orientation", "friction", "restitution", "name")
+STATIC_SOLID_KEYS = ("shape", "position", "orientation", "friction", "restitution", "name", "rolling_friction",
+                     "torsional_friction")
 PART_KEYS = ("shape", "position", "orientation", "density")
 PLANE_KEYS = ("shape", "normal", "offset", "friction", "restitution")
 MESH_KEYS = ("shape", "path", "heightfield", "position", "orientation", "scale", "friction", "restitution", "name")
@@ -64,7 +66,7 @@ HEIGHTFIELD_KEYS = {
     "noise": ("function", "amplitude", "size", "cells", "seed", "smoothing"),
 }
 HEIGHTFIELD_REQUIRED = {"sines": ("amplitude", "size", "cells"), "noise": ("amplitude", "size", "cells", "seed")}
-MATERIAL_KEYS = ("density", "mass", "friction", "restitution", "name")
+MATERIAL_KEYS = ("density", "mass", "friction", "restitution", "name") + RESISTANCE_KEYS
 RAIN_KEYS = ("count", "region", "shapes", "weights", "half_extents", "half_extent_range", "orientation", "seed",
              "linear_velocity", "angular_velocity") + MATERIAL_KEYS
 GENERATOR_KEYS = {

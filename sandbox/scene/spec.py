@@ -20,6 +20,13 @@ from typing import Callable, ClassVar
 import numpy as np
 
 
+RESISTANCE_KEYS = ("linear_damping", "angular_damping", "rolling_friction", "torsional_friction")
+"""A body's motion resistances, all 0 by default (effects.py compiles each in only when some body
+has one): damping [1/s] slows its velocity like ``v' = v / (1 + h c)`` (Box2D, Rapier); rolling and
+torsional friction [m] are lever arms: a contact point resists rolling (spinning about its
+normal) with a torque up to that length times its normal force (Bullet's rolling and spinning
+friction)."""
+
 DEFAULT_PIECES = 8
 """Voronoi pieces of a convex body's fracture when none is given (scene key ``pieces``)."""
 MAX_PIECES = 64
@@ -55,6 +62,10 @@ class BodySpec:
     static: bool = False
     friction: float = 0.5
     restitution: float = 0.0
+    linear_damping: float = 0.0  # [1/s] (RESISTANCE_KEYS)
+    angular_damping: float = 0.0  # [1/s]
+    rolling_friction: float = 0.0  # [m] combined with the partner's by max
+    torsional_friction: float = 0.0  # [m]
     name: str | None = None
     breakable: bool = False  # fractures when a contact manifold's normal impulse in one step exceeds strength
     strength: float | None = None  # [N s], breakable bodies only
@@ -116,6 +127,14 @@ class WorldSpec:
     substeps: int = 1  # the whole collide-solve-integrate step runs this many times per step
     contact_hertz: float | None = None  # [Hz] contact stiffness; None: Settings.contact_hertz
     duration: float | None = None  # [s] how long the scene is meant to run (events must fall inside)
+    speculative_contacts: bool | None = None  # None: Settings.speculative_contacts
+    speculative_speed: float | None = None  # [m/s] None: Settings.speculative_speed
+
+    SETTINGS: ClassVar[tuple] = ("contact_hertz", "speculative_contacts", "speculative_speed")
+    """The keys that a scene gives for its world's settings.Settings (None: the setting's default)."""
+
+    def settings_given(self) -> dict:
+        return {key: getattr(self, key) for key in self.SETTINGS if getattr(self, key) is not None}
 
 
 @dataclass

@@ -17,6 +17,8 @@ def read_world(r: Reader | None) -> WorldSpec:
         substeps=r.integer("substeps", 1, minimum=1, maximum=10_000),
         contact_hertz=r.real("contact_hertz", None, positive=True),
         duration=r.real("duration", None, positive=True),
+        speculative_contacts=r.boolean("speculative_contacts", None),
+        speculative_speed=r.real("speculative_speed", None, nonnegative=True),
     )
 
 

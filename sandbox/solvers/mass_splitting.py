@@ -49,7 +49,7 @@ from ..awake import body_id, body_total
 from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .contact_spring import GRAVITY_REACH, INV_H, LOAD_BLEND, RESTITUTION_THRESHOLD, STEP_DT, support_push
-from .rows import point_impulse, solve_point
+from .rows import ROLLING, point_impulse, rolling_impulse, scaled_inv_inertia, solve_point
 
 vec3 = ti.math.vec3
 
@@ -244,20 +244,26 @@ def gather_slots(s: ti.template(), bodies: ti.template(), awake: ti.template(), 
 
 @ti.func
 def _warm_delta(rows: ti.template(), c: ti.template(), bodies: ti.template(), a: ti.i32, b: ti.i32,
-                start: ti.i32, count: ti.i32):
+                start: ti.i32, count: ti.i32, friction: ti.template()):
     """Velocity changes of a block's bodies under its accumulated impulses, full masses."""
     dva, dwa, dvb, dwb = vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0)
     for q in range(start, start + count):
         imp = point_impulse(rows, c, q)
+        ta = rows.ra[q].cross(imp)
+        tb = rows.rb[q].cross(imp)
+        if ti.static(friction & ROLLING):
+            ta += rolling_impulse(rows, c, q)
+            tb += rolling_impulse(rows, c, q)
         dva -= bodies.inv_mass[a] * imp
-        dwa -= bodies.inv_inertia_world[a] @ rows.ra[q].cross(imp)
+        dwa -= bodies.inv_inertia_world[a] @ ta
         dvb += bodies.inv_mass[b] * imp
-        dwb += bodies.inv_inertia_world[b] @ rows.rb[q].cross(imp)
+        dwb += bodies.inv_inertia_world[b] @ tb
     return dva, dwa, dvb, dwb
 
 
 @ti.func
-def _apply_accumulated(rows: ti.template(), c: ti.template(), q: ti.i32, va: vec3, wa: vec3, vb: vec3, wb: vec3):
+def _apply_accumulated(rows: ti.template(), c: ti.template(), bodies: ti.template(), friction: ti.template(),
+                       q: ti.i32, va: vec3, wa: vec3, vb: vec3, wb: vec3):
     """Point q's accumulated impulses applied to velocity copies with the schedule's scaled
     responses (rows.prepare_response)."""
     lam = rows.lam[q]
@@ -269,15 +275,19 @@ def _apply_accumulated(rows: ti.template(), c: ti.template(), q: ti.i32, va: vec
     for e in ti.static(range(3)):
         dw_a += vec3(ra_[e, 0], ra_[e, 1], ra_[e, 2]) * lam[e]
         dw_b += vec3(rb_[e, 0], rb_[e, 1], rb_[e, 2]) * lam[e]
+    if ti.static(friction & ROLLING):
+        roll = rolling_impulse(rows, c, q)
+        dw_a += scaled_inv_inertia(bodies, c.body_a[q], rows.lin_a[q]) @ roll
+        dw_b += scaled_inv_inertia(bodies, c.body_b[q], rows.lin_b[q]) @ roll
     return va - rows.lin_a[q] * imp, wa - dw_a, vb + rows.lin_b[q] * imp, wb + dw_b
 
 
 @ti.func
 def warm_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-               k: ti.i32):
+               friction: ti.template(), k: ti.i32):
     """Block k's share of the warm start, into its two slots."""
     start, count, a, b = block_range(c, k, kind)
-    dva, dwa, dvb, dwb = _warm_delta(rows, c, bodies, a, b, start, count)
+    dva, dwa, dvb, dwb = _warm_delta(rows, c, bodies, a, b, start, count, friction)
     s.slot_dv[2 * k] = dva
     s.slot_dw[2 * k] = dwa
     s.slot_dv[2 * k + 1] = dvb
@@ -286,13 +296,14 @@ def warm_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: 
 
 @ti.func
 def warm_start_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
-                      awake: ti.template(), kind: ti.template(), gravity: vec3, h: ti.f32, active: ti.i32):
+                      awake: ti.template(), kind: ti.template(), friction: ti.template(), gravity: vec3, h: ti.f32,
+                      active: ti.i32):
     """Gravity, then last step's matched impulses with the full masses (method.md 1.10):
     one loop over blocks into the slots, one fixed-order gather per body that adds
     ``gravity * h`` too. Two loops: at a kernel's top level each runs in parallel; inside
     a serialized loop (solvers/substep.py) both run in order. ``active`` = 0 skips it."""
     for k in range(s.block_count[None] * active):
-        warm_block(s, rows, c, bodies, kind, k)
+        warm_block(s, rows, c, bodies, kind, friction, k)
     gather_slots(s, bodies, awake, gravity * h, active)
 
 
@@ -313,7 +324,7 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
         # so after the weight this is the full-mass warm start of ``_warm_delta``, read
         # from the precomputed rows instead of rebuilt through each body's inertia
         for q in range(start, start + count):
-            va, wa, vb, wb = _apply_accumulated(rows, c, q, va, wa, vb, wb)
+            va, wa, vb, wb = _apply_accumulated(rows, c, bodies, friction, q, va, wa, vb, wb)
     dva = (va - va0) * s.weight[a]
     dwa = (wa - wa0) * s.weight[a]
     dvb = (vb - vb0) * s.weight[b]
@@ -341,8 +352,8 @@ def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
 
 @ti.kernel
 def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
-               kind: ti.template(), gravity: vec3, h: ti.f32):
-    warm_start_blocks(s, rows, c, bodies, awake, kind, gravity, h, 1)
+               kind: ti.template(), friction: ti.template(), gravity: vec3, h: ti.f32):
+    warm_start_blocks(s, rows, c, bodies, awake, kind, friction, gravity, h, 1)
 
 
 @ti.kernel

@@ -41,7 +41,7 @@ class Loop:
     iterations: int  # substeps per step
     sweeps: int  # sweeps per substep (Settings.sweeps)
     awake: object  # which bodies the body loops visit: awake.EVERY, or a sleeping world's awake lists
-    gyroscopic: bool = True  # the rotation solves the gyroscopic term (effects.py: an anisotropic body)
+    motion: int = 1  # the position update's switches (integrate.motion_switch: gyroscopic, damping)
 
 
 class Schedule:
@@ -93,9 +93,10 @@ class Schedule:
         """Gravity and warm start of a later substep ride on the previous relax sweep."""
         return substep.folds_warm_start(self.visit, warm)
 
-    def warm_start(self, buf, awake, gravity, h: float) -> None:
+    def warm_start(self, buf, awake, friction: int, gravity, h: float) -> None:
         """Gravity, then last step's matched impulses with the full masses, as one launch."""
-        mass_splitting.warm_start(buf.blocks, buf.rows, buf.contacts, buf.bodies, awake, self.kind, gravity, h)
+        mass_splitting.warm_start(buf.blocks, buf.rows, buf.contacts, buf.bodies, awake, self.kind, friction, gravity,
+                                  h)
 
     def sweep(self, buf, awake, mode: int, friction: bool, then_warm: int = 0, gravity=None, h: float = 0.0) -> None:
         """One pass over every contact row (``then_warm``: mass_splitting.sweep_blocks)."""
@@ -172,4 +173,4 @@ class Schedule:
         """The arguments every iteration-loop kernel of substep.py starts with."""
         b = loop.buf
         return (b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors, self.kind, self.visit, loop.friction,
-                loop.warm, loop.track, loop.awake, loop.gyroscopic, loop.gravity, loop.h)
+                loop.warm, loop.track, loop.awake, loop.motion, loop.gravity, loop.h)

@@ -60,12 +60,12 @@ def _sweep(schedule: ti.template(), s: ti.template(), rows: ti.template(), c: ti
 
 @ti.func
 def _start_substep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
-                   awake: ti.template(), kind: ti.template(), warm: ti.template(), gravity: vec3, h: ti.f32,
-                   active: ti.i32):
+                   awake: ti.template(), kind: ti.template(), warm: ti.template(), friction: ti.template(),
+                   gravity: vec3, h: ti.f32, active: ti.i32):
     """Gravity and warm start of a substep (``active`` = 0 skips both: the Jacobi family's
     later substeps get them from the previous relax sweep, mass_splitting.sweep_blocks)."""
     if ti.static(warm):
-        warm_start_blocks(s, rows, c, bodies, awake, kind, gravity, h, active)
+        warm_start_blocks(s, rows, c, bodies, awake, kind, friction, gravity, h, active)
     else:
         gravity_loop(bodies, awake, gravity, h, active)
 
@@ -80,7 +80,7 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
 def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                      col: ti.template(), err: ti.template(), kind: ti.template(), schedule: ti.template(),
                      friction: ti.template(), warm: ti.template(), track: ti.template(),
-                     awake: ti.template(), gyroscopic: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
+                     awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
                      sweeps: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, everything in order on one thread.
     ``track``: each substep's impulses are added to the step's (``rows.lam_step``)."""
@@ -90,10 +90,10 @@ def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bo
         first = 1
         if ti.static(fold):
             first = 1 if it == 0 else 0
-        _start_substep(s, rows, c, bodies, awake, kind, warm, gravity, h, first)
+        _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
         for _sb in range(sweeps):
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
-        positions_loop(bodies, awake, gyroscopic, h, err)
+        positions_loop(bodies, awake, motion, h, err)
         for sr in range(sweeps):
             then_warm = 0
             if ti.static(fold):
@@ -107,15 +107,15 @@ def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bo
 def substep_parallel(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                      col: ti.template(), err: ti.template(), kind: ti.template(), schedule: ti.template(),
                      friction: ti.template(), warm: ti.template(), track: ti.template(),
-                     awake: ti.template(), gyroscopic: ti.template(), gravity: vec3, h: ti.f32, first: ti.i32,
+                     awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, first: ti.i32,
                      then_warm: ti.i32):
     """One substep of ``h`` with one sweep each, every phase's loops parallel, in one launch.
     ``first``: this substep does its own gravity and warm start; ``then_warm``: its relax
     sweep does the next one's (both 1 / 0 decided by ``Schedule.iterate`` with ``folds_warm_start``)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
-    _start_substep(s, rows, c, bodies, awake, kind, warm, gravity, h, first)
+    _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
     _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
-    positions_loop(bodies, awake, gyroscopic, h, err)
+    positions_loop(bodies, awake, motion, h, err)
     _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
     if ti.static(track):
         add_step_impulses_loop(rows, c)
@@ -139,7 +139,7 @@ def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
     while lo < hi:
         for k in range(lo, hi):
             if ti.static(warm_only):
-                warm_block(s, rows, c, bodies, kind, k)
+                warm_block(s, rows, c, bodies, kind, friction, k)
             else:
                 sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k)
         tm.finish(team, p, hi - lo)
@@ -155,7 +155,7 @@ advance its pose, or add its slots and then advance its pose."""
 
 @ti.func
 def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
-                bodies: ti.template(), awake: ti.template(), gyroscopic: ti.template(), err: ti.template(),
+                bodies: ti.template(), awake: ti.template(), motion: ti.template(), err: ti.template(),
                 what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32) -> ti.i32:
     n = body_total(bodies, awake)
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
@@ -167,7 +167,7 @@ def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32,
             if ti.static(what == GRAVITY):
                 apply_gravity(bodies, gravity, h, i)
             if ti.static(what == POSE or what == GATHER_POSE):
-                advance_pose(bodies, gyroscopic, h, err, i)
+                advance_pose(bodies, motion, h, err, i)
         tm.finish(team, p, hi - lo)
         lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
     tm.wait(team, p, n)
@@ -203,7 +203,7 @@ def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
 @ti.func
 def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
                   rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
-                  gyroscopic: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
+                  motion: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                   schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3,
                   h: ti.f32) -> ti.i32:
     """One sweep; ``pose_after``: the bodies' poses advance right after it (the biased
@@ -211,15 +211,15 @@ def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
     if ti.static(schedule == PGS_COLORED):
         p = _color_phases(team, p, member, members, rows, c, bodies, col, mode, friction)
         if pose_after:
-            p = _body_phase(team, p, member, members, s, bodies, awake, gyroscopic, err, POSE, vec3(0.0), gravity, h)
+            p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, POSE, vec3(0.0), gravity, h)
     else:
         p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, mode, friction, then_warm, False)
         dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
         if pose_after:
-            p = _body_phase(team, p, member, members, s, bodies, awake, gyroscopic, err, GATHER_POSE, dv_extra, gravity,
+            p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GATHER_POSE, dv_extra, gravity,
                             h)
         else:
-            p = _body_phase(team, p, member, members, s, bodies, awake, gyroscopic, err, GATHER, dv_extra, gravity, h)
+            p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GATHER, dv_extra, gravity, h)
     return p
 
 
@@ -242,7 +242,7 @@ def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(),
                  c: ti.template(), bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                  schedule: ti.template(), friction: ti.template(), warm: ti.template(), track: ti.template(),
-                 awake: ti.template(), gyroscopic: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
+                 awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
                  sweeps: ti.i32):
     """What one thread runs: every phase of ``iterate_in_order``, in its order."""
     fold = ti.static(folds_warm_start(schedule, warm))
@@ -254,19 +254,19 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
         if first:
             if ti.static(warm):
                 p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, True)
-                p = _body_phase(team, p, member, members, s, bodies, awake, gyroscopic, err, GATHER, gravity * h,
+                p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GATHER, gravity * h,
                                 gravity, h)
             else:
-                p = _body_phase(team, p, member, members, s, bodies, awake, gyroscopic, err, GRAVITY, vec3(0.0),
+                p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GRAVITY, vec3(0.0),
                                 gravity, h)
         for sb in range(sweeps):
-            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, gyroscopic, col, err, kind, schedule,
+            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
                               BIASED, friction, 0, int(sb == sweeps - 1), gravity, h)
         for sr in range(sweeps):
             then_warm = 0
             if ti.static(fold):
                 then_warm = 1 if it < iterations - 1 and sr == sweeps - 1 else 0
-            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, gyroscopic, col, err, kind, schedule,
+            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
                               RELAX, friction, then_warm, 0, gravity, h)
         if ti.static(track):
             p = _point_phase(team, p, member, members, c, rows)
@@ -276,7 +276,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
 def iterate_shared(team: ti.template(), s: ti.template(), rows: ti.template(), c: ti.template(),
                    bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                    schedule: ti.template(), friction: ti.template(), warm: ti.template(), track: ti.template(),
-                   awake: ti.template(), gyroscopic: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
+                   awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
                    sweeps: ti.i32, phases: ti.i32, members: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, shared by ``members`` threads."""
     ti.static_assert(schedule != PGS, "serial PGS has nothing to share")
@@ -284,4 +284,4 @@ def iterate_shared(team: ti.template(), s: ti.template(), rows: ti.template(), c
     for i in range(members * tm.TASK_ITEMS):
         if i % tm.TASK_ITEMS == 0:
             _team_member(team, i // tm.TASK_ITEMS, members, s, rows, c, bodies, col, err, kind, schedule, friction,
-                         warm, track, awake, gyroscopic, gravity, h, iterations, sweeps)
+                         warm, track, awake, motion, gravity, h, iterations, sweeps)
