@@ -33,7 +33,7 @@ class Loop:
     """One step's iteration loop: the buffers, the compile-time switches and the substep."""
 
     buf: object  # buffers.BufferSet
-    friction: bool  # friction rows are solved
+    friction: int  # which friction rows are solved: rows.SLIDING | rows.ROLLING bits (rows.contact_switch)
     warm: bool  # last step's impulses warm start the first substep
     track: bool  # each substep's impulses are summed into the step's (rows.lam_step)
     gravity: object  # ti.math.vec3 [m/s^2]
@@ -98,7 +98,7 @@ class Schedule:
         mass_splitting.warm_start(buf.blocks, buf.rows, buf.contacts, buf.bodies, awake, self.kind, friction, gravity,
                                   h)
 
-    def sweep(self, buf, awake, mode: int, friction: bool, then_warm: int = 0, gravity=None, h: float = 0.0) -> None:
+    def sweep(self, buf, awake, mode: int, friction: int, then_warm: int = 0, gravity=None, h: float = 0.0) -> None:
         """One pass over every contact row (``then_warm``: mass_splitting.sweep_blocks)."""
         rows, c, bodies = buf.rows, buf.contacts, buf.bodies
         if self.info.visit == "serial":
@@ -118,7 +118,7 @@ class Schedule:
             g = gravity if gravity is not None else ti.math.vec3(0.0)
             mass_splitting.jacobi_sweep(buf.blocks, rows, c, bodies, awake, self.kind, mode, friction, then_warm, g, h)
 
-    def restitution(self, buf, awake, friction: bool, tolerance: float, max_sweeps: int) -> int:
+    def restitution(self, buf, awake, friction: int, tolerance: float, max_sweeps: int) -> int:
         """The bounce pass after the substeps: restitution sweeps of this schedule until no
         bouncing row is off its target by more than ``tolerance`` [m/s] (one sweep for PGS on a
         lone contact, several for the split schedules, as in the solve itself), at most
