@@ -110,12 +110,12 @@ class Stepper:
             if fused:
                 blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
                 step_kernels.prepare_step(b.rows, b.contacts, b.bodies, b.history, blk, params, s.match_distance,
-                                          s.warm_start / k, kind, mode, omega, scaled)
+                                          s.warm_start / k, kind, mode, omega, scaled, contact_switch(c.effects))
                 c.schedule.color(b, step_count)
             else:
                 prepare_rows(b.rows, b.contacts, b.bodies, params)
                 match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
-                c.schedule.prepare(b, s, step_count)
+                c.schedule.prepare(b, s, step_count, contact_switch(c.effects))
         track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
         loop = Loop(b, contact_switch(c.effects), s.warm_start > 0.0, track, gravity, h_sub, k, s.sweeps, awake,
                     motion_switch(c.effects))

@@ -42,7 +42,8 @@ def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template
 @ti.kernel
 def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), hist: ti.template(),
                  blk: ti.template(), params: RowParams, match_distance: ti.f32, warm_factor: ti.f32,
-                 kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template()):
+                 kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template(),
+                 friction: ti.template()):
     """Rows and warm-start matching in one loop over the points, the schedule's adjacency
     (its split counts read both), then the row responses and springs (which read the
     split scales): each stage reads only its own point's earlier results, so these are
@@ -53,7 +54,7 @@ def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), h
         match_contact(hist, c, rows, match_distance, warm_factor, q)
     build_adjacency_loops(blk, c, bodies, rows, kind, mode, omega)
     for q in range(c.count[None]):
-        respond_row(rows, c, bodies, blk.scale, split, q)
+        respond_row(rows, c, bodies, blk.scale, split, friction, q)
 
 
 @ti.kernel

@@ -49,7 +49,7 @@ from ..awake import body_id, body_total
 from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .contact_spring import GRAVITY_REACH, INV_H, LOAD_BLEND, RESTITUTION_THRESHOLD, STEP_DT, support_push
-from .rows import ROLLING, point_impulse, rolling_impulse, scaled_inv_inertia, solve_point
+from .rows import ROLLING, point_impulse, rolling_impulse, solve_point
 
 vec3 = ti.math.vec3
 
@@ -262,8 +262,8 @@ def _warm_delta(rows: ti.template(), c: ti.template(), bodies: ti.template(), a:
 
 
 @ti.func
-def _apply_accumulated(rows: ti.template(), c: ti.template(), bodies: ti.template(), friction: ti.template(),
-                       q: ti.i32, va: vec3, wa: vec3, vb: vec3, wb: vec3):
+def _apply_accumulated(rows: ti.template(), c: ti.template(), friction: ti.template(), q: ti.i32, va: vec3, wa: vec3,
+                       vb: vec3, wb: vec3):
     """Point q's accumulated impulses applied to velocity copies with the schedule's scaled
     responses (rows.prepare_response)."""
     lam = rows.lam[q]
@@ -277,8 +277,8 @@ def _apply_accumulated(rows: ti.template(), c: ti.template(), bodies: ti.templat
         dw_b += vec3(rb_[e, 0], rb_[e, 1], rb_[e, 2]) * lam[e]
     if ti.static(friction & ROLLING):
         roll = rolling_impulse(rows, c, q)
-        dw_a += scaled_inv_inertia(bodies, c.body_a[q], rows.lin_a[q]) @ roll
-        dw_b += scaled_inv_inertia(bodies, c.body_b[q], rows.lin_b[q]) @ roll
+        dw_a += rows.roll_resp_a[q] @ roll
+        dw_b += rows.roll_resp_b[q] @ roll
     return va - rows.lin_a[q] * imp, wa - dw_a, vb + rows.lin_b[q] * imp, wb + dw_b
 
 
@@ -324,7 +324,7 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
         # so after the weight this is the full-mass warm start of ``_warm_delta``, read
         # from the precomputed rows instead of rebuilt through each body's inertia
         for q in range(start, start + count):
-            va, wa, vb, wb = _apply_accumulated(rows, c, bodies, friction, q, va, wa, vb, wb)
+            va, wa, vb, wb = _apply_accumulated(rows, c, friction, q, va, wa, vb, wb)
     dva = (va - va0) * s.weight[a]
     dwa = (wa - wa0) * s.weight[a]
     dvb = (vb - vb0) * s.weight[b]

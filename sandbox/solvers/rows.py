@@ -80,6 +80,10 @@ class Rows:
         self.rate = ti.field(ti.f32, c)  # [1/s] the normal row's bias rate (contact_spring.py)
         self.gamma = ti.field(ti.f32, c)  # the normal row's compliance gamma = K / c
         self.lam_roll = ti.Vector.field(3, ti.f32, c)  # [N m s] torsional (about n) and rolling (t1, t2) impulses
+        # with rolling friction only (respond_row): s I^-1 of each body, 1 / K~ of the angular rows (n, t1, t2)
+        self.roll_resp_a = ti.Matrix.field(3, 3, ti.f32, c)
+        self.roll_resp_b = ti.Matrix.field(3, 3, ti.f32, c)
+        self.inv_k_roll = ti.Vector.field(3, ti.f32, c)
         self.lam_step = ti.Vector.field(3, ti.f32, c)  # [N s] impulses summed over the step (when tracked)
         self.lam_bounce = ti.field(ti.f32, c)  # [N s] the restitution pass's normal impulse
         self.bounce_residual = ti.field(ti.f32, ())  # [m/s] largest bounce-row residual of the last sweep
@@ -194,7 +198,7 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
 
 @ti.func
 def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
-                split: ti.template(), q: ti.i32):
+                split: ti.template(), friction: ti.template(), q: ti.i32):
     """What a sweep needs of point q, once per step: the angular Jacobians r x e of both
     bodies for e = n, t1, t2, the velocity responses s I^-1 (r x e) and s / m, the normal
     row's spring (contact_spring.py: it needs the split response), and the inverse
@@ -236,19 +240,30 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     rows.gamma[q] = gamma
     rows.inv_k[q] = 1.0 / k
     rows.inv_k_soft[q] = 1.0 / (k[0] + gamma)
+    if ti.static(friction & ROLLING):  # the angular rows' responses (solve_rolling)
+        rows.roll_resp_a[q] = ia
+        rows.roll_resp_b[q] = ib
+        both = ia + ib
+        k_roll = vec3(c.normal[q].dot(both @ c.normal[q]), rows.t1[q].dot(both @ rows.t1[q]),
+                      rows.t2[q].dot(both @ rows.t2[q]))
+        inv_k_roll = vec3(0.0)  # 0: neither body can turn (both static or infinitely inert)
+        for e in ti.static(range(3)):
+            if k_roll[e] > 0.0:
+                inv_k_roll[e] = 1.0 / k_roll[e]
+        rows.inv_k_roll[q] = inv_k_roll
 
 
 @ti.func
 def prepare_response_loops(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
-                           split: ti.template()):
+                           split: ti.template(), friction: ti.template()):
     for q in range(c.count[None]):
-        respond_row(rows, c, bodies, scale, split, q)
+        respond_row(rows, c, bodies, scale, split, friction, q)
 
 
 @ti.kernel
 def prepare_response(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
-                     split: ti.template()):
-    prepare_response_loops(rows, c, bodies, scale, split)
+                     split: ti.template(), friction: ti.template()):
+    prepare_response_loops(rows, c, bodies, scale, split, friction)
 
 
 @ti.func
@@ -342,16 +357,6 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
 
 
 @ti.func
-def scaled_inv_inertia(bodies: ti.template(), i: ti.i32, lin: ti.f32):
-    """Body i's world inverse inertia times the schedule's mass scale s, read back from the
-    point's ``lin`` = s / m (respond_row), so the angular rows need no field of their own."""
-    m = ti.Matrix.zero(ti.f32, 3, 3)
-    if bodies.inv_mass[i] > 0.0:
-        m = bodies.inv_inertia_world[i] * (lin / bodies.inv_mass[i])
-    return m
-
-
-@ti.func
 def rolling_impulse(rows: ti.template(), c: ti.template(), q: ti.i32) -> vec3:
     """Point q's accumulated torsional and rolling impulses as one angular impulse on body b."""
     lr = rows.lam_roll[q]
@@ -366,25 +371,23 @@ def solve_rolling(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
     point's normal impulse (the larger of the two bodies' coefficients, Bullet's spinning and
     rolling friction), the rolling pair projected onto a disk like sliding friction. Their
     impulses are warm started within the step (mass_splitting._warm_delta) like the others."""
-    a = c.body_a[q]
-    b = c.body_b[q]
-    ia = scaled_inv_inertia(bodies, a, rows.lin_a[q])
-    ib = scaled_inv_inertia(bodies, b, rows.lin_b[q])
-    arm = ti.max(bodies.rolling[a], bodies.rolling[b]) * lam_n  # [N m s] (rolling, torsional) bounds
+    arm = ti.max(bodies.rolling[c.body_a[q]], bodies.rolling[c.body_b[q]]) * lam_n  # [N m s] (rolling, torsional)
+    ia = rows.roll_resp_a[q]
+    ib = rows.roll_resp_b[q]
+    inv_k = rows.inv_k_roll[q]
     lr = rows.lam_roll[q]
     n = c.normal[q]
     t1 = rows.t1[q]
     t2 = rows.t2[q]
-    k_n = n.dot((ia + ib) @ n)
-    if k_n > 0.0:
-        tn = ti.min(ti.max(lr[0] - (wb - wa).dot(n) / k_n, -arm[1]), arm[1])
+    if inv_k[0] > 0.0:
+        tn = ti.min(ti.max(lr[0] - (wb - wa).dot(n) * inv_k[0], -arm[1]), arm[1])
         d = (tn - lr[0]) * n
         wa -= ia @ d
         wb += ib @ d
         lr[0] = tn
         dw = wb - wa
-        r1 = lr[1] - dw.dot(t1) / t1.dot((ia + ib) @ t1)
-        r2 = lr[2] - dw.dot(t2) / t2.dot((ia + ib) @ t2)
+        r1 = lr[1] - dw.dot(t1) * inv_k[1]
+        r2 = lr[2] - dw.dot(t2) * inv_k[2]
         mag = ti.sqrt(r1 * r1 + r2 * r2)
         if mag > arm[0]:
             r1 *= arm[0] / mag

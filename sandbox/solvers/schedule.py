@@ -70,11 +70,11 @@ class Schedule:
         ``build_adjacency`` / ``prepare_response`` and of the fused ``step_kernels.prepare_step``."""
         return buf.blocks, self.kind, self.mode, self.relaxation(settings), self.info.scales_masses
 
-    def prepare(self, buf, settings, step: int) -> None:
+    def prepare(self, buf, settings, step: int, friction: int) -> None:
         """After the rows: body adjacency, scaled responses and colouring, as separate launches."""
         blk, kind, mode, omega, scaled = self.adjacency_args(buf, settings)
         mass_splitting.build_adjacency(blk, buf.contacts, buf.bodies, buf.rows, kind, mode, omega)
-        contact_rows.prepare_response(buf.rows, buf.contacts, buf.bodies, blk.scale, scaled)
+        contact_rows.prepare_response(buf.rows, buf.contacts, buf.bodies, blk.scale, scaled, friction)
         self.color(buf, step)
 
     def color(self, buf, step: int) -> None:
