@@ -41,6 +41,28 @@ def pytest_collection_modifyitems(config, items):
             item.add_marker(pytest.mark.xdist_group(item.module.__name__))
 
 
+@pytest.hookimpl(tryfirst=True)  # before the xdist worker sends its collection to the controller
+def pytest_collection_finish(session):
+    """Make the groups reach xdist's scheduler. pytest-xdist 3.8 passes a test's group to the
+    controller as an ``@group`` suffix written into ``item._nodeid``; pytest 9.2 keeps node ids in
+    ``item._id`` and ignores that write (pytest-xdist issue #1386), so every test was scheduled on
+    its own and each module fixture (the bench run, the recorded scene...) was built once per
+    process. Where the suffix did not take, write it where this pytest reads it."""
+    if not getattr(session.config.option, "loadgroup", False):  # set on xdist workers only
+        return
+    for item in session.items:
+        mark = item.get_closest_marker("xdist_group")
+        if mark is None or item.nodeid.rfind("@") > item.nodeid.rfind("]"):  # xdist's own test
+            continue
+        nodeid = f"{item.nodeid}@{mark.args[0]}"
+        if hasattr(item, "_id"):
+            from _pytest.nodeid import NodeId
+
+            item._id = NodeId.parse(nodeid)
+        else:
+            item._nodeid = nodeid
+
+
 def pytest_addoption(parser):
     parser.addoption("--stress", action="store_true", default=False,
                      help="run the long checks too: the whole hard-case matrix (every solver, 4 and 15 "
