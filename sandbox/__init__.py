@@ -17,11 +17,11 @@ import importlib
 from .errors import CapacityError, SandboxError, SceneError, SimulationError
 from .scene import (EFFECTS, IDENTITY, BodySpec, EventSpec, GeneratorError, Material, Scene, ShapeSpec, quat_to_matrix,
                     rain, resolve_scene, shipped_scenes)
-from .settings import Settings
+from .settings import FORMULATIONS, Settings
 
 __all__ = [
     # simulation
-    "Scene", "World", "Settings", "SOLVERS", "Recorder",
+    "Scene", "World", "Settings", "SOLVERS", "FORMULATIONS", "Recorder",
     # errors
     "SandboxError", "SceneError", "SimulationError", "CapacityError",
     # the Taichi backend

@@ -27,7 +27,8 @@ def cmd_run(args) -> int:
     if args.shuffle:
         options["shuffle"] = True
     t0 = time.perf_counter()
-    world = World(scene, solver=args.solver, iterations=args.iterations, arch=args.arch, profile=True, **options)
+    world = World(scene, solver=args.solver, iterations=args.iterations, arch=args.arch, profile=True,
+                  formulation=args.formulation, **options)
     if args.record:
         world.step(0)
     else:
@@ -58,6 +59,7 @@ def cmd_run(args) -> int:
         "solver": world.solver,
         "solver_options": world.solver_options,
         "iterations": world.iterations,
+        "formulation": world.formulation,
         "effects": list(world.effects),
         "dt": world.dt,
         "substeps": world.substeps,
@@ -73,7 +75,7 @@ def cmd_run(args) -> int:
         "series": series,
     }
     print(f"scene      {path}  ({world.body_count} bodies, arch {world.arch})")
-    print(f"solver     {world.solver}, {world.iterations} iterations, dt {world.dt:.5f} s x {steps} steps")
+    print(f"solver     {world.solver}, {world.iterations} iterations ({world.formulation}), dt {world.dt:.5f} s x {steps} steps")
     print(f"contacts   {m['contacts']} points in {m['manifolds']} manifolds")
     dynamic = m["awake_bodies"] + m["sleeping_bodies"]
     print(f"islands    {m['islands']}; {m['awake_bodies']} of {dynamic} dynamic bodies awake, "
@@ -164,6 +166,7 @@ def _add_run_flags(parser, arch_default: str) -> None:
 
 def main(argv=None) -> int:
     from .errors import SandboxError
+    from .settings import FORMULATIONS
     from .solvers import SOLVERS
 
     parser = argparse.ArgumentParser(prog="sandbox", description=__doc__)
@@ -173,6 +176,9 @@ def main(argv=None) -> int:
     run.add_argument("--solver", choices=list(SOLVERS), default=None, help="default: the scene's")
     run.add_argument("--iterations", type=int, default=None, help="default: the scene's")
     run.add_argument("--steps", type=int, default=600)
+    run.add_argument("--formulation", choices=list(FORMULATIONS), default=None,
+                     help="soft-step (Box2D v3, the default) or paper (Tonge et al.: one step, Baumgarte); "
+                     "default: the scene's")
     _add_run_flags(run, arch_default="auto")
     run.add_argument("--report", metavar="FILE.json", help="write a JSON report with timings and per-step series")
     run.add_argument("--record", metavar="FILE", help="record scene, settings, events and every frame's transforms")

@@ -79,7 +79,7 @@ class Recorder:
         self.world = world
         self.scene_path = Path(scene_path).resolve()
         self.scene_text = self.scene_path.read_text(encoding="utf-8")
-        self.settings = dataclasses.asdict(world.settings)
+        self.settings = dataclasses.asdict(world.initial_settings)  # later changes are in the event log
         self.start_solver = world.initial_solver  # solver changes since step 0 are in the event log
         self.start_step = world.step_count
         self.start_events = len(world.applied_events)  # events already in frame 0

@@ -12,6 +12,7 @@ from dataclasses import dataclass, fields
 
 
 ITERATION_LAUNCHES = ("auto", "shared", "one", "per-substep", "per-stage")
+FORMULATIONS = ("soft-step", "paper")
 
 
 @dataclass(frozen=True)
@@ -126,6 +127,24 @@ class Settings:
     it stands as without reuse, and a settled pile reuses as many manifolds (2263 of 2268
     after 400 steps of pile_1000)."""
 
+    formulation: str = "soft-step"
+    """How a step turns ``iterations`` into time stepping (sandbox/formulation.py).
+    ``"soft-step"``: every iteration is a substep of Box2D v3's soft step (soft contact
+    springs, a biased and a rigid relax sweep): the default, and what every figure in the
+    docs uses unless it says otherwise. ``"paper"``: the scheme of Tonge et al. 2012 and
+    of the talk's slides: one velocity-level solve per step, ``iterations`` sweeps with
+    accumulated impulse clamping and warm starting, rigid rows with Baumgarte position
+    correction (``baumgarte``), positions integrated with the biased velocities. The
+    paper's scheme is where the jitter of parallel PGS shows; it gains energy on hard
+    impacts and deep overlaps, which is why the soft step exists. Scene key:
+    ``[world] formulation``."""
+
+    baumgarte: float = 0.8
+    """[1] Under ``formulation = "paper"``: the fraction of the penetration beyond ``slop``
+    that the velocity solve asks to remove within one step (bias velocity gamma x depth / dt,
+    capped at ``max_push_speed``); the slides use 0.8. Higher corrects faster and pumps more
+    energy into resting stacks; 0 leaves overlaps alone. Scene key: ``[world] baumgarte``."""
+
     sweeps: int = 1
     """[1] Sweeps of the solver per substep, for the biased solve and for the relax
     alike. One iteration = one substep with one sweep each is Box2D v3's soft
@@ -194,6 +213,10 @@ class Settings:
 
             raise SandboxError(f"unknown iteration_launch {self.iteration_launch!r}; choose one of "
                                f"{', '.join(ITERATION_LAUNCHES)}")
+        if self.formulation not in FORMULATIONS:
+            from .errors import SandboxError
+
+            raise SandboxError(f"unknown formulation {self.formulation!r}; choose one of {', '.join(FORMULATIONS)}")
         for name in ("sleep_linear_speed", "sleep_angular_speed", "sleep_time", "speculative_speed"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value)
@@ -212,6 +235,7 @@ class Settings:
                                         ("contact_deflection", 0.0, math.inf, True),
                                         ("contact_load_time", 0.0, math.inf, False),
                                         ("split_relaxation", 0.0, 2.0, False),
+                                        ("baumgarte", 0.0, 1.0, True),
                                         ("restitution_tolerance", 0.0, math.inf, False)):
             value = getattr(self, name)
             above = value >= low if closed else value > low

@@ -12,6 +12,9 @@ The step, stage by stage (names = profile keys = report keys, profile.STAGES):
 5. ``relax``        restitution pass (repeated until the bounce converges, for every schedule),
    impulses stored for the next step
 
+Under ``Settings.formulation = "paper"`` step 4 is one substep of h with ``iterations``
+biased sweeps of rigid Baumgarte rows and no relax sweep (formulation.py).
+
 Python only orchestrates. With the profiler off, the once-per-step stages run in three
 launches (``step_kernels.py``: state save + broadphase + narrowphase, then rows + matching +
 schedule set-up, then velocity check + contact store; the same loops as the per-stage
@@ -39,6 +42,7 @@ import taichi as ti
 
 from . import step_kernels
 from .effects import CompiledEffects
+from .formulation import sweep_plan
 from .errors import CapacityError, SimulationError
 from .broadphase import speculation
 from .integrate import motion_switch
@@ -89,7 +93,8 @@ class Stepper:
 
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
         awake = self.edits.awake_set(c.effects.sleeping)
-        k = c.iterations
+        plan = sweep_plan(s.formulation, c.iterations, s.sweeps)
+        k = plan.substeps
         h_sub = h / k
         gravity = ti.math.vec3(*c.gravity)
         fused = self.fused and not p.enabled  # the once-per-step stages in three launches (step_kernels.py)
@@ -106,7 +111,7 @@ class Stepper:
             clear_bodies(b.impacts, b.bodies)
         bounce = c.effects.restitution
         with p.stage("prepare"):
-            params = row_params(s, h_sub, s.sweeps, h, c.gravity)
+            params = row_params(s, h_sub, plan.biased, h, c.gravity)
             if fused:
                 blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
                 step_kernels.prepare_step(b.rows, b.contacts, b.bodies, b.history, blk, params, s.match_distance,
@@ -117,10 +122,10 @@ class Stepper:
                 match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
                 c.schedule.prepare(b, s, step_count, contact_switch(c.effects))
         track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
-        loop = Loop(b, contact_switch(c.effects), s.warm_start > 0.0, track, gravity, h_sub, k, s.sweeps, awake,
-                    motion_switch(c.effects))
+        loop = Loop(b, contact_switch(c.effects), s.warm_start > 0.0, track, gravity, h_sub, k, plan.biased, plan.relax,
+                    awake, motion_switch(c.effects))
         staged = p.enabled or c.record_residuals  # a timer per stage, a residual read per sweep
-        launch = "per-stage" if staged else c.schedule.launch(s, c.arch)
+        launch = "per-stage" if staged else c.schedule.launch(s, c.arch, loop)
         if launch == "per-stage":
             self._iterate_by_stage(c.schedule, loop, c.record_residuals)
         else:
@@ -190,7 +195,7 @@ class Stepper:
         from .integrate import integrate_positions, integrate_velocities
         from .solvers.rows import BIASED, RELAX, add_step_impulses
 
-        b, p, k, sweeps, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.awake
+        b, p, k, sweeps, relax, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.relax, loop.awake
         fold = schedule.folds_warm_start(loop.warm)
         for i in range(k):
             if i == 0 or not fold:
@@ -208,8 +213,8 @@ class Stepper:
             with p.stage("integrate_positions"):
                 integrate_positions(b.bodies, awake, loop.motion, loop.h, b.errors)
             with p.stage("relax"):
-                for j in range(sweeps):
-                    then_warm = int(fold and i < k - 1 and j == sweeps - 1)
+                for j in range(relax):
+                    then_warm = int(fold and i < k - 1 and j == relax - 1)
                     schedule.sweep(b, awake, RELAX, loop.friction, then_warm, loop.gravity, loop.h)
             if loop.track:
                 add_step_impulses(b.rows, b.contacts)

@@ -44,6 +44,8 @@ def edit_call(event, solver: str, solver_options: dict) -> EditCall:
         return EditCall("set_gravity", (event.gravity,))
     if kind == "effects":
         return EditCall("set_effects", (event.effects,))
+    if kind == "formulation":
+        return EditCall("set_formulation", (event.formulation,), {"baumgarte": event.baumgarte})
     if kind == "timestep":
         return EditCall("set_timestep", (event.dt, event.substeps))
     if kind == "fracture":

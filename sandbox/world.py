@@ -29,10 +29,12 @@ class World:
     """A simulated scene. ``World(scene, solver=..., iterations=..., arch=...)``."""
 
     def __init__(self, scene: Scene, solver: str | None = None, iterations: int | None = None, arch: str = "auto",
-                 settings: Settings | None = None, profile: bool = False, reserve_pieces: int = 0, **solver_options):
+                 settings: Settings | None = None, profile: bool = False, reserve_pieces: int = 0,
+                 formulation: str | None = None, **solver_options):
         """``reserve_pieces``: room for this many fracture pieces beyond what the scene's breakable
         bodies and fracture events need (those are reserved anyway), so that fractures neither grow
-        the buffers nor bring a new shape kind, both of which recompile the kernels once."""
+        the buffers nor bring a new shape kind, both of which recompile the kernels once.
+        ``formulation``: "soft-step" or "paper" (formulation.py), over the scene's and ``settings``'."""
         if not isinstance(scene, Scene):
             raise SandboxError(f"World needs a Scene (Scene.load(path) or Scene.from_dict(d)), got {type(scene).__name__}")
         self.arch = backend.init(arch)
@@ -41,6 +43,8 @@ class World:
         settings = settings or Settings()
         if not settings_given:  # the scene's own settings, where it gives any
             settings = settings.replace(**scene.world.settings_given())
+        if formulation is not None:
+            settings = settings.replace(formulation=formulation)
         self.dt = float(scene.world.dt)
         self.substeps = int(scene.world.substeps)
         self.gravity = np.asarray(scene.world.gravity, dtype=np.float32)
@@ -64,6 +68,9 @@ class World:
         """Impact fractures that could not happen, one sentence each (the body stayed whole and
         stopped being breakable)."""
         self._edits = Edits(scene, settings, reserve_pieces)
+        self.initial_settings = settings
+        """The settings the world started with (formulation events change them; a recording
+        begun later re-simulates from step 0 with these and the logged events)."""
         self._stepper = Stepper(self._edits, self.profiler)
         effects = tuple(getattr(scene, "effects", ("friction", "restitution")))
         self.friction = "friction" in effects  # compile-time: friction rows exist only if asked for
@@ -117,6 +124,19 @@ class World:
         self.solver = name
         self.iterations = iterations
         self._schedule = Schedule(name, self.solver_options)
+        self.wake()
+
+    @property
+    def formulation(self) -> str:
+        """The time-stepping scheme: "soft-step" or "paper" (Settings.formulation, formulation.py)."""
+        return self.settings.formulation
+
+    def set_formulation(self, name: str, baumgarte: float | None = None) -> None:
+        """Switch the time-stepping scheme between steps ("soft-step" or "paper", and the paper's
+        Baumgarte factor); state and warm-start impulses are kept (both store a step's impulse),
+        every sleeping island wakes."""
+        changes = {"formulation": name} if baumgarte is None else {"formulation": name, "baumgarte": baumgarte}
+        self.settings = self.settings.replace(**changes)
         self.wake()
 
     def set_gravity(self, gravity) -> None:

@@ -57,7 +57,7 @@ def free_port(host: str = "127.0.0.1") -> int:
 
 class SandboxApp:
     def __init__(self, scene: str | None = None, *, host: str = "127.0.0.1", port: int = 8080, arch: str = "cpu",
-                 solver: str | None = "mass-splitting", iterations: int | None = 15,
+                 solver: str | None = "mass-splitting", iterations: int | None = 15, formulation: str | None = None,
                  recordings_dir: Path = Path("recordings"), log=print):
         self.log = log
         check_port_free(host, port)
@@ -65,7 +65,8 @@ class SandboxApp:
             resolve_scene(scene)  # a wrong name fails before Taichi starts
         self.arch = resolve_arch(arch)  # Taichi itself starts in the simulation thread
         self.scene_path = resolve_scene(scene or default_scene(self.arch))
-        self.sim = Simulation(self.scene_path, arch=self.arch, solver=solver, iterations=iterations, log=log)
+        self.sim = Simulation(self.scene_path, arch=self.arch, solver=solver, iterations=iterations,
+                              formulation=formulation, log=log)
         self.host, self.requested_port = host, (port or free_port(host))
         self.recordings_dir = recordings_dir
         self.server = None

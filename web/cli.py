@@ -6,7 +6,7 @@ from pathlib import Path
 
 
 def register(sub) -> None:
-    from sandbox import SOLVERS
+    from sandbox import FORMULATIONS, SOLVERS
 
     serve = sub.add_parser("serve", help="the web sandbox: a live world in the browser",
                            description="Start the web sandbox and print its URL. Without SCENE: a scene sized "
@@ -18,6 +18,8 @@ def register(sub) -> None:
                        help="auto: CUDA when a device is present, else CPU")
     serve.add_argument("--solver", choices=list(SOLVERS), default="mass-splitting")
     serve.add_argument("--iterations", type=int, default=15)
+    serve.add_argument("--formulation", choices=list(FORMULATIONS), default=None,
+                       help="soft-step (Box2D v3) or paper (Tonge et al.: one step, Baumgarte); default: the scene's")
     serve.add_argument("--recordings", default="recordings", help="folder for saved recordings")
     serve.set_defaults(func=cmd_serve)
 
@@ -32,6 +34,6 @@ def cmd_serve(args) -> int:
     if args.iterations < 1:
         raise SandboxError(f"--iterations must be at least 1, got {args.iterations}")
     app = SandboxApp(args.scene, host=args.host, port=args.port, arch=args.arch, solver=args.solver,
-                     iterations=args.iterations, recordings_dir=Path(args.recordings))
+                     iterations=args.iterations, formulation=args.formulation, recordings_dir=Path(args.recordings))
     app.serve_forever()
     return 0

@@ -16,7 +16,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from sandbox import EFFECTS, SOLVERS, EventSpec, SandboxError, Scene, resolve_scene, shipped_scenes
+from sandbox import EFFECTS, FORMULATIONS, SOLVERS, EventSpec, SandboxError, Scene, resolve_scene, shipped_scenes
 
 from .debris import DEBRIS_MIXES, debris_bodies
 from .render import COLOR_MODES
@@ -74,6 +74,11 @@ class ControlPanel:
             self.shuffle.on_update(self._on_solver)
             self.iterations = gui.add_slider("Iterations", 1, MAX_ITERATIONS, 1, int(min(snap.iterations, MAX_ITERATIONS)))
             self.iterations.on_update(self._on_iterations)
+            self.formulation = gui.add_dropdown("Formulation", list(FORMULATIONS), initial_value=snap.formulation,
+                                                hint="soft-step: Box2D v3's substeps with soft contacts; paper: "
+                                                "Tonge et al.'s one velocity solve per step with Baumgarte "
+                                                "correction, where parallel PGS jitters")
+            self.formulation.on_update(self._on_formulation)
             dt_label = min(TIME_STEPS, key=lambda k: abs(TIME_STEPS[k] - snap.dt))
             self.dt = gui.add_dropdown("Time step", list(TIME_STEPS), initial_value=dt_label)
             self.dt.on_update(self._on_timestep)
@@ -195,6 +200,12 @@ class ControlPanel:
                         lambda s: s.apply(ev), on_error=self._notify(event, "Solver"))
 
     @_user_action
+    def _on_formulation(self, event) -> None:
+        ev = EventSpec(time=0.0, kind="formulation", formulation=self.formulation.value)
+        self.sim.submit(f"formulation {ev.formulation}", lambda s: s.apply(ev),
+                        on_error=self._notify(event, "Formulation"))
+
+    @_user_action
     def _on_iterations(self, event) -> None:
         ev = EventSpec(time=0.0, kind="iterations", iterations=int(self.iterations.value))
         self.sim.submit(f"iterations {ev.iterations}", lambda s: s.apply(ev),
@@ -295,6 +306,7 @@ class ControlPanel:
         changed it) and update the stats and plots."""
         self._sync(self.solver, snap.solver)
         self._sync(self.iterations, min(snap.iterations, MAX_ITERATIONS))
+        self._sync(self.formulation, snap.formulation)
         self._sync(self.gravity, snap.gravity_on)
         for e, box in self.effects.items():
             self._sync(box, e in snap.effects)
@@ -304,8 +316,9 @@ class ControlPanel:
         if snap.error and not snap.playing:
             state += f" — {snap.error}"
         rec = " · ⏺ recording" if snap.recording else ""
+        paper = " (paper's scheme)" if snap.formulation == "paper" else ""
         self._set(self.status, "content", f"**{self.sim.scene_path.stem}** · {len(snap.bodies)} bodies · "
-                                          f"{snap.solver} × {snap.iterations} · {state}{rec}")
+                                          f"{snap.solver} × {snap.iterations}{paper} · {state}{rec}")
         m, t = snap.metrics, snap.timing_ms
         stages = " · ".join(f"{k} {t.get(k, 0.0):.2f}" for k in ("collide", "solve", "integrate"))
         lines = [

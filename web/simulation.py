@@ -49,6 +49,7 @@ class Snapshot:
     realtime_factor: float
     solver: str
     iterations: int
+    formulation: str  # "soft-step" | "paper" (sandbox/formulation.py)
     dt: float
     substeps: int
     effects: tuple
@@ -86,11 +87,12 @@ class Simulation:
     STATS_WINDOW_S = 0.5
 
     def __init__(self, scene_path: Path, *, arch: str = "cpu", solver: str | None = None,
-                 iterations: int | None = None, log=print):
+                 iterations: int | None = None, formulation: str | None = None, log=print):
         self.scene_path = Path(scene_path)
         self.arch = arch
         self.solver = solver
         self.iterations = iterations
+        self.formulation = formulation  # None: the scene's
         self.log = log
         self.world = None
         self.playing = True
@@ -144,7 +146,8 @@ class Simulation:
         solver = self.world.solver if self.world is not None else self.solver
         iterations = self.world.iterations if self.world is not None else self.iterations
         options = dict(self.world.solver_options) if self.world is not None else {}
-        world = World(scene, solver=solver, iterations=iterations, arch=self.arch, profile=False,
+        formulation = self.world.formulation if self.world is not None else self.formulation
+        world = World(scene, solver=solver, iterations=iterations, arch=self.arch, profile=False, formulation=formulation,
                       **{k: v for k, v in options.items() if v is not None})
         self.stop_recording()
         if old is not None:
@@ -311,6 +314,7 @@ class Simulation:
             realtime_factor=self._stats.realtime_factor,
             solver=w.solver,
             iterations=w.iterations,
+            formulation=w.formulation,
             dt=w.dt,
             substeps=w.substeps,
             effects=w.effects,

@@ -39,7 +39,8 @@ MAX_HEIGHTFIELD_CELLS = 2048
 """Per axis; 2048 x 2048 cells is 8.4 million triangles."""
 
 TOP_KEYS = ("description", "world", "solver", "static", "body", "generate", "event", "effects")
-WORLD_KEYS = ("gravity", "dt", "substeps", "contact_hertz", "duration", "speculative_contacts", "speculative_speed")
+WORLD_KEYS = ("gravity", "dt", "substeps", "contact_hertz", "duration", "speculative_contacts", "speculative_speed",
+              "formulation", "baumgarte")
 SOLVER_OPTION_KEYS = ("shuffle", "relaxation", "seed")
 SOLVER_KEYS = ("name", "iterations") + SOLVER_OPTION_KEYS
 SHAPE_KEYS = {
@@ -91,5 +92,6 @@ EVENT_KEYS = {  # kind -> (allowed keys, required keys)
     "gravity": (("time", "kind", "gravity"), ("time", "kind", "gravity")),
     "effects": (("time", "kind", "effects"), ("time", "kind", "effects")),
     "fracture": (("time", "kind", "bodies", "pieces", "seed", "impulse"), ("time", "kind", "bodies")),
+    "formulation": (("time", "kind", "formulation", "baumgarte"), ("time", "kind", "formulation")),
 }
 

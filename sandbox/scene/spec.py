@@ -100,7 +100,7 @@ class EventSpec:
 
     time: float  # [s] >= 0, and <= the scene's duration when it has one
     kind: str  # "drop" | "set_velocity" | "impulse" | "remove" | "solver" | "iterations" | "gravity" | "effects"
-    #            | "fracture" | "timestep" (interactive only: the web sandbox's dt / substeps controls)
+    #            | "fracture" | "formulation" | "timestep" (interactive only: the web sandbox's dt / substeps)
     new_bodies: list = field(default_factory=list)  # drop: BodySpecs (generated, seeded)
     bodies: list = field(default_factory=list)  # set_velocity / impulse / remove: body indices
     linear_velocity: np.ndarray | None = None  # set_velocity [m/s]; None keeps it
@@ -114,6 +114,8 @@ class EventSpec:
     effects: tuple | None = None  # effects: the effects now on (a subset of keys.EFFECTS)
     dt: float | None = None  # timestep: the new step [s]
     substeps: int | None = None  # timestep: the new number of substeps
+    formulation: str | None = None  # formulation: "soft-step" | "paper" (formulation.py)
+    baumgarte: float | None = None  # formulation: the paper's Baumgarte factor; None keeps it
     pieces: int | None = None  # fracture: Voronoi pieces of a convex body
     seed: int | None = None  # fracture: seed of the Voronoi sites (the k-th listed body uses seed + k)
     outward_impulse: float | None = None  # fracture: [N s] total impulse pushing the pieces apart
@@ -129,8 +131,11 @@ class WorldSpec:
     duration: float | None = None  # [s] how long the scene is meant to run (events must fall inside)
     speculative_contacts: bool | None = None  # None: Settings.speculative_contacts
     speculative_speed: float | None = None  # [m/s] None: Settings.speculative_speed
+    formulation: str | None = None  # "soft-step" | "paper" (formulation.py); None: Settings.formulation
+    baumgarte: float | None = None  # [1] the paper formulation's position correction; None: Settings.baumgarte
 
-    SETTINGS: ClassVar[tuple] = ("contact_hertz", "speculative_contacts", "speculative_speed")
+    SETTINGS: ClassVar[tuple] = ("contact_hertz", "speculative_contacts", "speculative_speed", "formulation",
+                                 "baumgarte")
     """The keys that a scene gives for its world's settings.Settings (None: the setting's default)."""
 
     def settings_given(self) -> dict:

@@ -15,6 +15,8 @@ Each event has a ``time`` [s] and a ``kind``:
   shapes, a convex body into ``pieces`` Voronoi cells (seed ``seed`` + k for the k-th
   listed body), pushed apart by a total outward ``impulse`` [N s]. Piece 0 takes the
   body's place in the body list, the other pieces are appended in listed order.
+* ``formulation``: the time-stepping scheme, ``"soft-step"`` or ``"paper"``, and optionally the
+  paper's ``baumgarte`` factor (sandbox/formulation.py).
 
 The engine also applies ``timestep`` events (new dt and substeps), which only the web
 sandbox issues: a scene file's event times are converted to steps with the scene's dt.
@@ -39,11 +41,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..settings import FORMULATIONS
 from .schema import Reader
 from .spec import DEFAULT_PIECES, MAX_PIECES, BodySpec, EventSpec, ShapeSpec
 
 EVENT_KINDS = ("drop", "set_velocity", "impulse", "remove", "solver", "iterations", "gravity", "effects",
-               "fracture")
+               "fracture", "formulation")
 _PUSHED = ("static bodies cannot be pushed, so {a} {kind} event cannot target it (make the body dynamic, "
            "or remove it instead)")
 STATIC_REFUSALS = {
@@ -110,6 +113,9 @@ def read_events(readers: list[Reader], *, duration, bodies: list[BodySpec], mesh
             ev.gravity = r.vector("gravity", 3)
         elif kind == "effects":
             ev.effects = tuple(sorted(read_effects(r)))
+        elif kind == "formulation":
+            ev.formulation = r.string("formulation", choices=FORMULATIONS, what="formulation")
+            ev.baumgarte = r.real("baumgarte", None, low=0.0, high=1.0, open_high=True)
         else:  # iterations
             ev.iterations = r.integer("iterations", minimum=1, maximum=MAX_ITERATIONS)
         parsed.append(item)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..settings import FORMULATIONS
 from .keys import MAX_ITERATIONS, SOLVER_KEYS, SOLVER_NAMES, SOLVER_OPTION_KEYS, SOLVER_OPTIONS, WORLD_KEYS
 from .schema import Reader
 from .spec import SolverSpec, WorldSpec
@@ -19,6 +20,8 @@ def read_world(r: Reader | None) -> WorldSpec:
         duration=r.real("duration", None, positive=True),
         speculative_contacts=r.boolean("speculative_contacts", None),
         speculative_speed=r.real("speculative_speed", None, nonnegative=True),
+        formulation=r.string("formulation", None, choices=FORMULATIONS, what="formulation"),
+        baumgarte=r.real("baumgarte", None, low=0.0, high=1.0, open_high=True),
     )
 
 

@@ -43,13 +43,14 @@ import math
 import taichi as ti
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
- UP_Z, GRAVITY_REACH) = range(13)
+ UP_Z, GRAVITY_REACH, BAUMGARTE_RATE) = range(14)
 PARAM_COUNT = 16
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
 deflection [1], the support average's blend per step [1], the step [s], the up
-direction (against gravity; zero without gravity) and the gap gravity closes in one step
-from rest, |g| dt^2 [m]."""
+direction (against gravity; zero without gravity), the gap gravity closes in one step
+from rest, |g| dt^2 [m], and the paper formulation's Baumgarte rate [1/s] (0: the soft step;
+formulation.py)."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
@@ -60,6 +61,8 @@ RowParams = ti.types.vector(PARAM_COUNT, ti.f32)
 def row_params(settings, h: float, sweeps: int, dt: float, gravity):
     """This step's ``RowParams`` from ``settings`` for substeps of ``h`` [s] with ``sweeps``
     biased and as many relax sweeps each, in steps of ``dt`` [s], under ``gravity`` [m/s^2]."""
+    from ..formulation import baumgarte_rate
+
     values = [0.0] * PARAM_COUNT
     values[INV_H] = 1.0 / h
     values[OMEGA] = 2.0 * math.pi * min(settings.contact_hertz, 0.25 / h)
@@ -74,6 +77,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity):
     if g > 0.0:
         values[UP_X], values[UP_Y], values[UP_Z] = (-float(x) / g for x in gravity)
     values[GRAVITY_REACH] = g * dt * dt
+    values[BAUMGARTE_RATE] = baumgarte_rate(settings, dt)
     return RowParams(values)
 
 
@@ -97,6 +101,17 @@ def spring(params: ti.template(), omega: ti.f32, k_true: ti.f32):
     h = 1.0 / params[INV_H]
     zeta = params[ZETA]
     return omega / (2.0 * zeta + h * omega), k_true / (h * omega * (2.0 * zeta + h * omega))
+
+
+@ti.func
+def row_spring(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, size: ti.f32):
+    """(bias rate [1/s], compliance gamma) of a normal row: the soft step's spring, or under the
+    paper formulation a rigid row (gamma 0) whose bias removes ``baumgarte`` of the depth per step."""
+    rate = params[BAUMGARTE_RATE]
+    gamma = 0.0
+    if rate <= 0.0:
+        rate, gamma = spring(params, row_omega(params, k_true, k_split, load, size), k_true)
+    return rate, gamma
 
 
 @ti.func

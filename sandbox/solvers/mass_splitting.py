@@ -48,7 +48,8 @@ import taichi as ti
 from ..awake import body_id, body_total
 from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
-from .contact_spring import GRAVITY_REACH, INV_H, LOAD_BLEND, RESTITUTION_THRESHOLD, STEP_DT, support_push
+from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, INV_H, LOAD_BLEND, RESTITUTION_THRESHOLD, STEP_DT,
+                             support_push)
 from .rows import ROLLING, point_impulse, rolling_impulse, solve_point
 
 vec3 = ti.math.vec3
@@ -106,10 +107,13 @@ def n_blocks(c: ti.template(), kind: ti.template()) -> ti.i32:
 @ti.func
 def _point_can_act(c: ti.template(), rows: ti.template(), q: ti.i32) -> ti.i32:
     """Point q touches or penetrates, carries a warm-start impulse, or closes its gap within
-    the step at its approach speed (rows.prepare_row and the warm-start match ran before)."""
+    the step at its approach speed (rows.prepare_row and the warm-start match ran before).
+    Under the paper formulation every point counts, as in the paper: its rigid rows have no
+    compliance to absorb a sub-body count that a point joining mid-solve makes too small."""
     sep = c.sep[q]
     closing = sep + ti.min(rows.approach[q], 0.0) * rows.params[STEP_DT] - rows.params[GRAVITY_REACH]
-    return ti.cast(sep <= 0.0 or rows.lam[q][0] > 0.0 or closing <= 0.0, ti.i32)
+    return ti.cast(sep <= 0.0 or rows.lam[q][0] > 0.0 or closing <= 0.0 or rows.params[BAUMGARTE_RATE] > 0.0,
+                   ti.i32)
 
 
 @ti.func

@@ -45,8 +45,7 @@ impulses are summed into ``lam_step``, the step's impulse.
 import taichi as ti
 
 from ..math3d import plane_basis, quat_rotate, quat_rotate_inv
-from .contact_spring import (INV_H, MAX_PUSH, PARAM_COUNT, RESTITUTION_THRESHOLD, RowParams, row_omega, spring,
-                             supported_load)
+from .contact_spring import INV_H, MAX_PUSH, PARAM_COUNT, RESTITUTION_THRESHOLD, RowParams, row_spring, supported_load
 
 vec3 = ti.math.vec3
 
@@ -234,8 +233,7 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     rows.lin_b[q] = bodies.inv_mass[b] * sb
     k = sa * rows.k_a[q] + sb * rows.k_b[q]
     k_true = rows.k_a[q][0] + rows.k_b[q][0]
-    omega = row_omega(rows.params, k_true, k[0], supported_load(rows.params, c, bodies, q), c.size[q])
-    rate, gamma = spring(rows.params, omega, k_true)
+    rate, gamma = row_spring(rows.params, k_true, k[0], supported_load(rows.params, c, bodies, q), c.size[q])
     rows.rate[q] = rate
     rows.gamma[q] = gamma
     rows.inv_k[q] = 1.0 / k

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import taichi as ti
 
+from ..formulation import PAPER
 from . import SOLVERS, mass_splitting, pgs, substep, team
 from . import rows as contact_rows
 
@@ -39,7 +40,8 @@ class Loop:
     gravity: object  # ti.math.vec3 [m/s^2]
     h: float  # substep [s]
     iterations: int  # substeps per step
-    sweeps: int  # sweeps per substep (Settings.sweeps)
+    sweeps: int  # biased sweeps per substep (formulation.sweep_plan)
+    relax: int  # relax sweeps per substep (0 under the paper formulation)
     awake: object  # which bodies the body loops visit: awake.EVERY, or a sleeping world's awake lists
     motion: int = 1  # the position update's switches (integrate.motion_switch: gyroscopic, damping)
 
@@ -58,11 +60,14 @@ class Schedule:
 
     # ------------------------------------------------------------------ per step
     def relaxation(self, settings) -> float:
-        """omega of the merge: the ``relaxation`` option, else the setting the description names."""
+        """omega of the merge: the ``relaxation`` option, else the setting the description names
+        (under the paper formulation the split schedules take the paper's plain average, 1)."""
         given = self.options.get("relaxation")
         if given is not None:
             return float(given)
         name = self.info.relaxation_setting
+        if name == "split_relaxation" and settings.formulation == PAPER:
+            return 1.0
         return float(getattr(settings, name)) if name else 1.0
 
     def adjacency_args(self, buf, settings) -> tuple:
@@ -137,7 +142,7 @@ class Schedule:
         return done
 
     # ------------------------------------------------------------------ the fused iteration loop
-    def launch(self, settings, arch: str) -> str:
+    def launch(self, settings, arch: str, loop: Loop) -> str:
         """Which launch runs the iteration loop (Settings.iteration_launch; "per-stage" is also
         what a profiled world uses). All give bit-identical results."""
         launch = settings.iteration_launch
@@ -147,19 +152,19 @@ class Schedule:
             launch = "one"  # a GPU block cannot wait for another
         if launch not in self.info.launches:
             launch = _FALLBACK[launch]
-        if launch == "per-substep" and settings.sweeps != 1:
+        if launch == "per-substep" and (loop.sweeps, loop.relax) != (1, 1):
             launch = "per-stage"  # a sweep count is not unrolled into the kernel
         return launch
 
     def iterate(self, launch: str, loop: Loop) -> None:
         """The whole iteration loop in one of the fused launches ("one", "shared", "per-substep")."""
         if launch == "one":
-            substep.iterate_in_order(*self._loop_args(loop), loop.iterations, loop.sweeps)
+            substep.iterate_in_order(*self._loop_args(loop), loop.iterations, loop.sweeps, loop.relax)
         elif launch == "shared":
-            phases = substep.shared_phase_bound(self.visit, loop.iterations, loop.sweeps)
+            phases = substep.shared_phase_bound(self.visit, loop.iterations, loop.sweeps, loop.relax)
             members = team.cpu_threads()
             substep.iterate_shared(team.team_for(phases, members), *self._loop_args(loop), loop.iterations,
-                                   loop.sweeps, phases, members)
+                                   loop.sweeps, loop.relax, phases, members)
         elif launch == "per-substep":
             fold = self.folds_warm_start(loop.warm)
             k = loop.iterations

@@ -81,9 +81,10 @@ def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bo
                      col: ti.template(), err: ti.template(), kind: ti.template(), schedule: ti.template(),
                      friction: ti.template(), warm: ti.template(), track: ti.template(),
                      awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
-                     sweeps: ti.i32):
-    """All ``iterations`` substeps of ``h`` in one launch, everything in order on one thread.
-    ``track``: each substep's impulses are added to the step's (``rows.lam_step``)."""
+                     sweeps: ti.i32, relax: ti.i32):
+    """All ``iterations`` substeps of ``h`` in one launch, everything in order on one thread:
+    ``sweeps`` biased and ``relax`` relax sweeps each (formulation.sweep_plan). ``track``: each
+    substep's impulses are added to the step's (``rows.lam_step``)."""
     fold = ti.static(folds_warm_start(schedule, warm))
     ti.loop_config(serialize=True)
     for it in range(iterations):
@@ -94,10 +95,10 @@ def iterate_in_order(s: ti.template(), rows: ti.template(), c: ti.template(), bo
         for _sb in range(sweeps):
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
         positions_loop(bodies, awake, motion, h, err)
-        for sr in range(sweeps):
+        for sr in range(relax):
             then_warm = 0
             if ti.static(fold):
-                then_warm = 1 if it < iterations - 1 and sr == sweeps - 1 else 0
+                then_warm = 1 if it < iterations - 1 and sr == relax - 1 else 0
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
         if ti.static(track):
             add_step_impulses_loop(rows, c)
@@ -121,12 +122,12 @@ def substep_parallel(s: ti.template(), rows: ti.template(), c: ti.template(), bo
         add_step_impulses_loop(rows, c)
 
 
-def shared_phase_bound(schedule: int, iterations: int, sweeps: int) -> int:
+def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int) -> int:
     """Most phases ``iterate_shared`` walks (its team needs a counter pair per phase)."""
     if schedule == PGS_COLORED:
         per_sweep = MAX_COLORS + 1  # every colour, then the overflow colour
-        return iterations * (2 * sweeps * per_sweep + 4)
-    return iterations * (4 * sweeps + 3)
+        return iterations * ((sweeps + relax) * per_sweep + 4)
+    return iterations * (2 * (sweeps + relax) + 3)
 
 
 @ti.func
@@ -243,7 +244,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
                  c: ti.template(), bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                  schedule: ti.template(), friction: ti.template(), warm: ti.template(), track: ti.template(),
                  awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
-                 sweeps: ti.i32):
+                 sweeps: ti.i32, relax: ti.i32):
     """What one thread runs: every phase of ``iterate_in_order``, in its order."""
     fold = ti.static(folds_warm_start(schedule, warm))
     p = 0
@@ -262,10 +263,10 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
         for sb in range(sweeps):
             p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
                               BIASED, friction, 0, int(sb == sweeps - 1), gravity, h)
-        for sr in range(sweeps):
+        for sr in range(relax):
             then_warm = 0
             if ti.static(fold):
-                then_warm = 1 if it < iterations - 1 and sr == sweeps - 1 else 0
+                then_warm = 1 if it < iterations - 1 and sr == relax - 1 else 0
             p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
                               RELAX, friction, then_warm, 0, gravity, h)
         if ti.static(track):
@@ -277,11 +278,11 @@ def iterate_shared(team: ti.template(), s: ti.template(), rows: ti.template(), c
                    bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                    schedule: ti.template(), friction: ti.template(), warm: ti.template(), track: ti.template(),
                    awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
-                   sweeps: ti.i32, phases: ti.i32, members: ti.i32):
+                   sweeps: ti.i32, relax: ti.i32, phases: ti.i32, members: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, shared by ``members`` threads."""
     ti.static_assert(schedule != PGS, "serial PGS has nothing to share")
     tm.reset_loop(team, phases * members)
     for i in range(members * tm.TASK_ITEMS):
         if i % tm.TASK_ITEMS == 0:
             _team_member(team, i // tm.TASK_ITEMS, members, s, rows, c, bodies, col, err, kind, schedule, friction,
-                         warm, track, awake, motion, gravity, h, iterations, sweeps)
+                         warm, track, awake, motion, gravity, h, iterations, sweeps, relax)

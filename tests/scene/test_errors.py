@@ -45,7 +45,8 @@ CASES = [
     # unknown keys, listing the allowed ones
     ("unknown-top-key", {"bodies": []}, "bodies", "allowed keys: body, description"),
     ("unknown-body-key", _body(radius=1.0), "body[0].radius", "allowed keys:"),
-    ("unknown-world-key", {"world": {"gravty": [0, 0, -9.81]}}, "world.gravty", "allowed keys: contact_hertz, dt, duration, gravity, speculative_contacts, speculative_speed, substeps"),
+    ("unknown-world-key", {"world": {"gravty": [0, 0, -9.81]}}, "world.gravty", "allowed keys: baumgarte, contact_hertz, dt, duration, formulation, gravity, speculative_contacts, "
+     "speculative_speed, substeps"),
     ("unknown-solver-key", {"solver": {"omega": 1.0}}, "solver.omega", "unknown key 'omega'"),
     ("static-mass-not-allowed", _with("static", **BOX, mass=3.0), "static[0].mass", "unknown key 'mass'"),
     ("compound-part-friction", _body(shape="compound", half_extents=_DROP,

@@ -164,7 +164,7 @@ def test_events_parse_every_kind_and_sort_stably():
 
 def test_event_kinds_are_the_documented_ones():
     assert EVENT_KINDS == ("drop", "set_velocity", "impulse", "remove", "solver", "iterations", "gravity", "effects",
-                           "fracture")
+                           "fracture", "formulation")
     assert {"wall", "rain"} <= set(GENERATOR_KINDS)
 
 

@@ -166,8 +166,12 @@ def test_browser_session(browser, server):
     _choose(page, "Solver", "pgs-colored")
     server.wait_for(r"\[sandbox\] solver pgs-colored \(15 iterations\)", 60)
     _wait_status(page, r"pgs-colored × 15")
+    # ... and the formulation dropdown the time-stepping scheme (docs/formulation.md)
+    _choose(page, "Formulation", "paper")
+    server.wait_for(r"\[sandbox\] formulation paper", 60)
+    _wait_status(page, r"pgs-colored × 15 \(paper's scheme\)")
 
-    # Stop and save: the file replays bit for bit, drop and solver switch included.
+    # Stop and save: the file replays bit for bit, drop, solver and formulation switches included.
     page.get_by_role("button", name="Stop & save").click()
     page.get_by_text(re.compile(r"Saved .*frames")).wait_for(timeout=60_000)
     (saved,) = server.recordings.glob("*.sbrec")
@@ -175,9 +179,11 @@ def test_browser_session(browser, server):
 
     header, frames = load(saved)
     kinds = [e[1]["kind"] for e in header["events"]]
-    assert header["start_step"] > 0 and "drop" in kinds and "solver" in kinds and len(frames) > 1
+    assert header["start_step"] > 0 and {"drop", "solver", "formulation"} <= set(kinds) and len(frames) > 1
     result = replay(saved, arch="cpu")
     assert result["first_departure"] is None, result
+    _choose(page, "Formulation", "soft-step")  # the rest of the session on the default scheme
+    server.wait_for(r"\[sandbox\] formulation soft-step", 60)
 
     ARTIFACTS.mkdir(parents=True, exist_ok=True)
     shot = ARTIFACTS / "web_sandbox.png"
