@@ -127,12 +127,22 @@ class SandboxApp:
         s.initial_camera.look_at = target
         s.initial_camera.up = (0.0, 0.0, 1.0)
 
+    def _frame_camera(self, snap) -> None:
+        """Point every open tab's camera at the bodies of a newly built world."""
+        eye, target = camera_for(snap.positions)
+        self.server.initial_camera.position = eye
+        self.server.initial_camera.look_at = target
+        for client in self.server.get_clients().values():
+            client.camera.position = eye
+            client.camera.look_at = target
+
     def _on_pick(self, body: int) -> None:
         self.panel.pick(body)
 
     def _render_loop(self) -> None:
         period = 1.0 / RENDER_HZ
         last_key = None
+        framed = None  # the scene the cameras were last pointed at (the first by _setup_scene)
         last_stats = 0.0
         frames, fps_t0 = 0, time.perf_counter()
         while not self._stop.is_set():
@@ -141,6 +151,9 @@ class SandboxApp:
             selected, mode = self.panel.selected, self.panel.color_mode  # read once: other threads write them
             key = (snap.world_id, snap.generation, snap.step, selected, mode, snap.contacts is None)
             if key != last_key:  # a new frame (or a new look): skipped snapshots are never drawn
+                if framed is not None and snap.scene.source != framed:
+                    self._frame_camera(snap)  # another scene: frame its bodies (a reset keeps the view)
+                framed = snap.scene.source
                 self.view.show(snap, selected, mode)
                 last_key = key
                 frames += 1

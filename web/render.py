@@ -164,10 +164,17 @@ def _bounds(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return positions.min(axis=0), positions.max(axis=0)
 
 
+PANEL_SHIFT = 0.45
+"""How far right of the bodies' centre the camera looks, in bounding radii, so the bodies sit
+in the left part of the view that the control panel (docked on the right) leaves free."""
+
+
 def camera_for(positions: np.ndarray) -> tuple[tuple, tuple]:
-    """(position, look_at) that frames the bodies from the front, slightly above."""
+    """(position, look_at) that frames the bodies from the front, slightly above, in the part of
+    the view left of the panel. The camera looks along +y, so its right is +x."""
     lo, hi = _bounds(positions)
     centre = 0.5 * (lo + hi)
     radius = float(max(2.0, 0.6 * np.linalg.norm(hi - lo)))
-    eye = centre + radius * np.array([0.35, -1.7, 0.75])
-    return tuple(float(x) for x in eye), tuple(float(x) for x in centre)
+    target = centre + np.array([PANEL_SHIFT * radius, 0.0, 0.0])
+    eye = target + radius * np.array([0.35, -1.7, 0.75])
+    return tuple(float(x) for x in eye), tuple(float(x) for x in target)
