@@ -38,15 +38,19 @@ from .fracture import FractureError, check_arguments, fracture_body, piece_count
 from .scene import quat_to_matrix
 from .scene.spec import EventSpec, Scene
 from .settings import Settings
-from .shapes import HULL
+from .shapes import HULL, KIND_NAMES
 
 
 class Edits:
     """The body list, host arrays and device buffers of one world, and their edits."""
 
-    def __init__(self, scene: Scene, settings: Settings, reserve_pieces: int = 0):
+    def __init__(self, scene: Scene, settings: Settings, reserve_pieces: int = 0, reserve_kinds: tuple = ()):
         if isinstance(reserve_pieces, bool) or not isinstance(reserve_pieces, (int, np.integer)) or reserve_pieces < 0:
             raise SandboxError(f"reserve_pieces must be an integer >= 0, got {reserve_pieces!r}")
+        names = {name: kind for kind, name in KIND_NAMES.items()}
+        unknown = [k for k in reserve_kinds if k not in names]
+        if unknown:
+            raise SandboxError(f"reserve_kinds: unknown shape kind(s) {unknown}; known: {', '.join(names)}")
         self.scene = scene
         self.settings = settings
         self.bodies = list(scene.bodies)  # the live body list (events add and remove)
@@ -57,7 +61,9 @@ class Edits:
         self.sleeping = False  # the sleeping effect is on (set_sleeping)
         reserve = _fracture_reserve(scene) + int(reserve_pieces)
         self.host = host_world(scene, settings)
-        self.kinds = _union_kinds(self.host.kinds, (HULL,) if reserve else ())
+        self.kinds = _union_kinds(self.host.kinds, ((HULL,) if reserve else ()) + tuple(names[k] for k in reserve_kinds))
+        self.reserve_kinds = tuple(sorted(reserve_kinds))
+        self.anisotropic_reserved = any(k != "sphere" for k in reserve_kinds)  # a box, capsule or hull may be
         self._finalizer = None
         self._acquire(self.host.capacities(reserve_pieces=reserve))
         self._update_breakable()

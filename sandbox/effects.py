@@ -32,13 +32,15 @@ class CompiledEffects:
         return asdict(self)
 
 
-def compile_effects(asked: tuple, host, settings) -> CompiledEffects:
+def compile_effects(asked: tuple, host, settings, anisotropic_reserved: bool = False) -> CompiledEffects:
     """The switches for a world that asks for ``asked``, holds ``host`` (build.HostWorld) and
-    runs with ``settings`` (settings.Settings)."""
+    runs with ``settings`` (settings.Settings). ``anisotropic_reserved``: bodies with an
+    anisotropic inertia may be added later (World's ``reserve_kinds``), so the gyroscopic step is
+    compiled in from the start rather than when the first such body arrives."""
     return CompiledEffects(
         friction="friction" in asked and host.has_friction,
         restitution="restitution" in asked and host.has_restitution,
-        gyroscopic=host.has_gyroscopic,
+        gyroscopic=host.has_gyroscopic or anisotropic_reserved,
         sleeping="sleeping" in asked,
         damping=host.has_damping,
         rolling_friction="friction" in asked and host.has_rolling_friction,

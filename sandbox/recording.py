@@ -102,6 +102,8 @@ class Recorder:
             "solver": self.start_solver[0],
             "iterations": self.start_solver[1],
             "solver_options": self.start_solver[2],
+            "reserve_pieces": self.world.reserve[0],
+            "reserve_kinds": list(self.world.reserve[1]),
             "arch": self.world.arch,
             "start_step": self.start_step,
             "start_events": self.start_events,
@@ -173,8 +175,9 @@ def replay(path, arch: str = "cpu", on_frame=None) -> dict:
     scene_path = Path(header["scene_path"])
     scene = scene_from_dict(data, source=str(scene_path), base_dir=scene_path.parent)
     world = World(scene, solver=header["solver"], iterations=header["iterations"], arch=arch,
-                  settings=Settings(**header["settings"]), **{k: v for k, v in header["solver_options"].items()
-                                                               if v is not None})
+                  settings=Settings(**header["settings"]), reserve_pieces=header.get("reserve_pieces", 0),
+                  reserve_kinds=tuple(header.get("reserve_kinds", ())),
+                  **{k: v for k, v in header["solver_options"].items() if v is not None})
     world._pending = []  # the recorded log already holds the scripted events
     world.auto_fracture = False  # ... and the impact fractures
     events = [(step, _decode(e)) for step, e in header["events"]]

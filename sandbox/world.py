@@ -30,10 +30,15 @@ class World:
 
     def __init__(self, scene: Scene, solver: str | None = None, iterations: int | None = None, arch: str = "auto",
                  settings: Settings | None = None, profile: bool = False, reserve_pieces: int = 0,
-                 formulation: str | None = None, **solver_options):
-        """``reserve_pieces``: room for this many fracture pieces beyond what the scene's breakable
-        bodies and fracture events need (those are reserved anyway), so that fractures neither grow
-        the buffers nor bring a new shape kind, both of which recompile the kernels once.
+                 reserve_kinds: tuple = (), formulation: str | None = None, **solver_options):
+        """``reserve_pieces``: room for this many fracture pieces (or other added bodies) beyond what
+        the scene's breakable bodies and fracture events need (those are reserved anyway), so that
+        fractures neither grow the buffers nor bring a new shape kind, both of which recompile the
+        kernels once. ``reserve_kinds``: shape kinds ("sphere", "capsule", "box", "hull") that bodies
+        added later may have: the collision kernels are compiled for them from the first step, and
+        the gyroscopic step too unless only spheres are named, so that adding such a body compiles
+        nothing (the web sandbox's debris). It can change bits (a cube scene then turns its cubes
+        with the gyroscopic solve), so recordings store it.
         ``formulation``: "soft-step" or "paper" (formulation.py), over the scene's and ``settings``'."""
         if not isinstance(scene, Scene):
             raise SandboxError(f"World needs a Scene (Scene.load(path) or Scene.from_dict(d)), got {type(scene).__name__}")
@@ -67,7 +72,10 @@ class World:
         self.fracture_failures: list[str] = []
         """Impact fractures that could not happen, one sentence each (the body stayed whole and
         stopped being breakable)."""
-        self._edits = Edits(scene, settings, reserve_pieces)
+        self._edits = Edits(scene, settings, reserve_pieces, tuple(reserve_kinds))
+        self.reserve = (int(reserve_pieces), self._edits.reserve_kinds)
+        """(reserve_pieces, reserve_kinds) as given: a recording stores them, since the compiled
+        effects (and so the bits) can depend on them."""
         self.initial_settings = settings
         """The settings the world started with (formulation events change them; a recording
         begun later re-simulates from step 0 with these and the logged events)."""
@@ -168,7 +176,7 @@ class World:
     def compiled_effects(self) -> CompiledEffects:
         """The effects the step's kernels are compiled with now: those asked for that some body
         can use, and those the bodies call for (effects.py)."""
-        return compile_effects(self.effects, self._edits.host, self.settings)
+        return compile_effects(self.effects, self._edits.host, self.settings, self._edits.anisotropic_reserved)
 
     @property
     def effects(self) -> tuple:
@@ -207,6 +215,13 @@ class World:
         pieces of impact fractures, if there are any (edits.py)."""
         self._flush_breaks()
         return self._edits.add(bodies)
+
+    def prepare_edits(self) -> None:
+        """Compile now the kernels that adding or removing bodies launches (the body list's
+        rebuild, upload and sleeping-island restore), instead of on the first such edit. Changes
+        no bit of the world; the web sandbox calls it while a world loads, so that the first
+        "Drop debris" does not pause the running world to compile."""
+        self._edits.add([])
 
     def remove_bodies(self, indices) -> None:
         """Remove bodies; the bodies after them move down to close the gaps."""

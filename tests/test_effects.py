@@ -5,7 +5,7 @@ motion only where it would have acted."""
 import numpy as np
 import pytest
 
-from sandbox import Scene, World
+from sandbox import SandboxError, Scene, World
 from sandbox.scene.rotations import quat_to_matrix
 from tests.helpers import box_body, plane, scene_dict, sphere_body
 
@@ -48,6 +48,23 @@ def test_adding_a_body_recompiles_for_what_it_needs():
     assert world.compiled_effects.gyroscopic
     world.remove_bodies([1])
     assert not world.compiled_effects.gyroscopic
+
+
+def test_reserved_kinds_compile_what_a_later_plank_needs_from_the_start():
+    """The web sandbox's worlds (reserve_kinds): the gyroscopic step is in before the plank comes,
+    so its arrival compiles nothing; spheres alone reserve nothing of it; an unknown kind is refused."""
+    world = World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch="cpu",
+                  reserve_kinds=("box", "hull"))
+    before = world.compiled_effects
+    assert before.gyroscopic
+    plank = Scene.from_dict(scene_dict([box_body([3.0, 0.0, 0.5], half=(1.0, 0.25, 0.1))])).bodies[0]
+    world.prepare_edits()
+    world.add_bodies([plank])
+    assert world.compiled_effects == before
+    spheres = World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch="cpu", reserve_kinds=("sphere",))
+    assert not spheres.compiled_effects.gyroscopic
+    with pytest.raises(SandboxError, match="unknown shape kind"):
+        World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch="cpu", reserve_kinds=("cone",))
 
 
 def test_cubes_and_spheres_turn_freely_without_the_gyroscopic_step():

@@ -15,6 +15,10 @@ _SHAPES = {
     "hulls": (("hull",), None),
     "capsules": (("capsule",), None),
 }
+DEBRIS_KINDS = tuple(sorted({kind for shapes, _ in _SHAPES.values() for kind in shapes}))
+"""Every shape kind a drop can bring: a web world compiles its collision for them from the start."""
+MAX_DEBRIS = 200
+"""Most bodies one drop adds (the panel's slider); a web world reserves room for one such drop."""
 HALF_SIZE_RANGE = (0.15, 0.45)  # [m]
 CLEARANCE = 1.0  # [m] between the highest body and the bottom of the drop region
 MAX_LAYERS = 64

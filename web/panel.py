@@ -18,7 +18,7 @@ import numpy as np
 
 from sandbox import EFFECTS, FORMULATIONS, SOLVERS, EventSpec, SandboxError, Scene, resolve_scene, shipped_scenes
 
-from .debris import DEBRIS_MIXES, debris_bodies
+from .debris import DEBRIS_MIXES, MAX_DEBRIS, debris_bodies
 from .render import COLOR_MODES
 
 EFFECT_HINTS = {"sleeping": "Resting islands stop being simulated until something touches them (drawn dimmed); "
@@ -113,7 +113,7 @@ class ControlPanel:
             self.realtime = gui.add_checkbox("Real time", True, hint="Off: step as fast as the machine can")
             self.realtime.on_update(lambda _: self.sim.submit("real time", self._set_realtime(self.realtime.value)))
         with gui.add_folder("Drop debris"):
-            self.debris_count = gui.add_slider("Count", 1, 200, 1, 20)
+            self.debris_count = gui.add_slider("Count", 1, MAX_DEBRIS, 1, 20)
             self.debris_mix = gui.add_dropdown("Shapes", DEBRIS_MIXES, initial_value="mixed")
             self.drop = gui.add_button("Drop debris", icon=None)
             self.drop.on_click(self._on_drop)

@@ -24,6 +24,8 @@ import numpy as np
 
 from sandbox import EventSpec, Recorder, SandboxError, Scene, SimulationError, init_backend
 
+from .debris import DEBRIS_KINDS, MAX_DEBRIS as DEBRIS_RESERVE
+
 HISTORY = 600  # published frames kept for the live plots
 PUBLISH_HZ = 30.0  # snapshots per second while playing: the renderer draws at most this many
 BODY_LIST_KINDS = ("drop", "remove", "fracture")
@@ -85,6 +87,8 @@ class Simulation:
     """Owns the World; ``submit`` commands from any thread, read ``latest`` from any thread."""
 
     STATS_WINDOW_S = 0.5
+    SLOW_STEP_S = 0.5
+    """[s] A step slower than this is logged ("slow step"): what the user saw as a stall."""
 
     def __init__(self, scene_path: Path, *, arch: str = "cpu", solver: str | None = None,
                  iterations: int | None = None, formulation: str | None = None, log=print):
@@ -148,7 +152,9 @@ class Simulation:
         options = dict(self.world.solver_options) if self.world is not None else {}
         formulation = self.world.formulation if self.world is not None else self.formulation
         world = World(scene, solver=solver, iterations=iterations, arch=self.arch, profile=False, formulation=formulation,
+                      reserve_pieces=DEBRIS_RESERVE, reserve_kinds=DEBRIS_KINDS,
                       **{k: v for k, v in options.items() if v is not None})
+        world.prepare_edits()  # compile what a drop launches now, not on the first click
         self.stop_recording()
         if old is not None:
             old.close()
@@ -263,6 +269,9 @@ class Simulation:
         finally:
             profiler.enabled = False
         now = time.perf_counter()
+        if now - t0 > self.SLOW_STEP_S:
+            self.log(f"[sandbox] slow step {self.world.step_count}: {1e3 * (now - t0):.0f} ms"
+                     + (" (the world's first: its kernels compile)" if self.world.step_count == 1 else ""))
         self._note_body_list_edits(logged)
         if profiled:
             s.sampled_ms = self.world.timing_ms()
