@@ -68,6 +68,20 @@ class Controls:
     arch: str
 
 
+@dataclass(frozen=True)
+class Sweep:
+    """Where a paused step stands: after sweep ``index`` of ``count`` of the ``phase``
+    ("biased" or "relax") of substep ``substep`` of ``substeps``. ``carries_warm_start``: this
+    relax sweep also applied the next substep's gravity and warm start (the Jacobi family)."""
+
+    substep: int
+    substeps: int
+    phase: str
+    index: int
+    count: int
+    carries_warm_start: bool
+
+
 class Stepper:
     """Runs substeps over ``edits``' buffers (edits.py: they may be replaced by a growth)."""
 
@@ -82,6 +96,13 @@ class Stepper:
         impulses are monitored (``first``: the step's first substep clears their peaks). In a
         sleeping world whose last step had no awake body, and nothing woke since, it does
         nothing: that step would change no bit (sleep.SleepBuffers.idle)."""
+        for _ in self.substep_sweeps(c, h, watch, first, step_count, pause=False):
+            pass
+
+    def substep_sweeps(self, c: Controls, h: float, watch: bool, first: bool, step_count: int, pause: bool):
+        """``substep`` as a generator. With ``pause`` the iteration loop runs stage by stage (the
+        same bits) and stops after every sweep, yielding a ``Sweep`` (inspection.py looks inside
+        the solve there); without, it yields nothing."""
         if c.effects.sleeping and self.edits.buf.sleep.idle:
             return
         from .bodies import save_good_state, update_world_inertia
@@ -124,10 +145,10 @@ class Stepper:
         track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
         loop = Loop(b, contact_switch(c.effects), s.warm_start > 0.0, track, gravity, h_sub, k, plan.biased, plan.relax,
                     awake, motion_switch(c.effects))
-        staged = p.enabled or c.record_residuals  # a timer per stage, a residual read per sweep
+        staged = p.enabled or c.record_residuals or pause  # a timer per stage, a read per sweep
         launch = "per-stage" if staged else c.schedule.launch(s, c.arch, loop)
         if launch == "per-stage":
-            self._iterate_by_stage(c.schedule, loop, c.record_residuals)
+            yield from self._iterate_by_stage(c.schedule, loop, c.record_residuals, pause)
         else:
             with p.stage("iterate"):
                 c.schedule.iterate(launch, loop)
@@ -188,10 +209,11 @@ class Stepper:
             collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, st.slop, h,
                           speculation(st), *st.manifold_reuse_bounds(), self.edits.kinds, awake)
 
-    def _iterate_by_stage(self, schedule: Schedule, loop: Loop, record_residuals: bool) -> None:
+    def _iterate_by_stage(self, schedule: Schedule, loop: Loop, record_residuals: bool, pause: bool):
         """The iteration loop a launch per phase, each in its stage. With warm starting, gravity
         rides on the warm-start pass ("iterate"), and for the Jacobi family both ride on the
-        previous substep's last relax sweep."""
+        previous substep's last relax sweep. A generator: with ``pause`` it yields a ``Sweep``
+        after every sweep."""
         from .integrate import integrate_positions, integrate_velocities
         from .solvers.rows import BIASED, RELAX, add_step_impulses
 
@@ -206,16 +228,20 @@ class Stepper:
                     with p.stage("integrate_velocities"):
                         integrate_velocities(b.bodies, awake, loop.gravity, loop.h)
             with p.stage("iterate"):
-                for _ in range(sweeps):
+                for j in range(sweeps):
                     schedule.sweep(b, awake, BIASED, loop.friction)
                     if record_residuals:
                         self.residual_history.append(biased_residual_rms(b))
+                    if pause:
+                        yield Sweep(i, k, "biased", j, sweeps, False)
             with p.stage("integrate_positions"):
                 integrate_positions(b.bodies, awake, loop.motion, loop.h, b.errors)
             with p.stage("relax"):
                 for j in range(relax):
                     then_warm = int(fold and i < k - 1 and j == relax - 1)
                     schedule.sweep(b, awake, RELAX, loop.friction, then_warm, loop.gravity, loop.h)
+                    if pause:
+                        yield Sweep(i, k, "relax", j, relax, bool(then_warm))
             if loop.track:
                 add_step_impulses(b.rows, b.contacts)
 

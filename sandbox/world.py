@@ -73,6 +73,7 @@ class World:
         """Impact fractures that could not happen, one sentence each (the body stayed whole and
         stopped being breakable)."""
         self._edits = Edits(scene, settings, reserve_pieces, tuple(reserve_kinds))
+        self._inspection = None  # the step being inspected (inspect_step), if any
         self.reserve = (int(reserve_pieces), self._edits.reserve_kinds)
         """(reserve_pieces, reserve_kinds) as given: a recording stores them, since the compiled
         effects (and so the bits) can depend on them."""
@@ -278,20 +279,40 @@ class World:
     def step(self, n: int = 1) -> None:
         if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
             raise SandboxError(f"step count must be a non-negative integer, got {n!r}")
-        h = self.dt / self.substeps
+        if self._inspection is not None:
+            raise SandboxError("a step is being inspected (World.inspect_step): finish it first")
         for _ in range(int(n)):
-            self._flush_breaks()
-            while self._pending and int(round(self._pending[0].time / self.dt)) <= self.step_count:
-                self.apply_event(self._pending.pop(0))
-            watch = self._edits.watch_impacts and self.auto_fracture
-            controls = Controls(self._schedule, self.iterations, self.gravity, self.compiled_effects,
-                                self.track_impulses, self.record_residuals, self.arch)
-            for s in range(self.substeps):
-                self._stepper.substep(controls, h, watch, first=s == 0, step_count=self.step_count)
-            if watch:
-                self._edits.note_breaks()
-            self.step_count += 1
-            self.profiler.steps += 1
+            for _ in self._one_step(pause=False):
+                pass
+
+    def inspect_step(self):
+        """The next step, one sweep at a time: an ``inspection.StepInspection`` (advance, look at
+        the contacts' impulses and residuals and a body's sub-body velocities, finish). Ends in
+        the same state as ``step(1)``, bit for bit."""
+        from .inspection import StepInspection
+
+        if self._inspection is not None:
+            raise SandboxError("a step is already being inspected: finish it first")
+        self._inspection = StepInspection(self, self._one_step(pause=True))
+        return self._inspection
+
+    def _one_step(self, pause: bool):
+        """One step (events due, every ``[world] substeps`` pass, breakage); a generator that
+        yields a step.Sweep after every sweep when ``pause``, nothing otherwise."""
+        h = self.dt / self.substeps
+        self._flush_breaks()
+        while self._pending and int(round(self._pending[0].time / self.dt)) <= self.step_count:
+            self.apply_event(self._pending.pop(0))
+        watch = self._edits.watch_impacts and self.auto_fracture
+        controls = Controls(self._schedule, self.iterations, self.gravity, self.compiled_effects,
+                            self.track_impulses, self.record_residuals, self.arch)
+        for s in range(self.substeps):
+            yield from self._stepper.substep_sweeps(controls, h, watch, first=s == 0, step_count=self.step_count,
+                                                    pause=pause)
+        if watch:
+            self._edits.note_breaks()
+        self.step_count += 1
+        self.profiler.steps += 1
 
     # ------------------------------------------------------------------ queries
     def body_name(self, i: int) -> str:
