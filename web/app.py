@@ -149,7 +149,8 @@ class SandboxApp:
             t0 = time.perf_counter()
             snap = self.sim.latest()
             selected, mode = self.panel.selected, self.panel.color_mode  # read once: other threads write them
-            key = (snap.world_id, snap.generation, snap.step, selected, mode, snap.contacts is None)
+            paused = snap.inspection["label"] if snap.inspection is not None else None  # a sweep of an inspected step
+            key = (snap.world_id, snap.generation, snap.step, selected, mode, snap.contacts is None, paused)
             if key != last_key:  # a new frame (or a new look): skipped snapshots are never drawn
                 if framed is not None and snap.scene.source != framed:
                     self._frame_camera(snap)  # another scene: frame its bodies (a reset keeps the view)

@@ -57,6 +57,7 @@ class ControlPanel:
         self._shown: dict = {}  # what the widgets show, to skip redundant updates
         self._local = threading.local()
         self._plotted = None
+        self._inspected = None  # the paused sweep (and body) the solver folder shows
         self._build()
 
     # ------------------------------------------------------------------ layout
@@ -127,6 +128,18 @@ class ControlPanel:
             self.fracture.on_click(self._on_fracture)
             self.remove = gui.add_button("Remove selected", disabled=True)
             self.remove.on_click(self._on_remove)
+        with gui.add_folder("Inside the solver", expand_by_default=False):
+            self.inspect_buttons = gui.add_button_group("Step", ("Inspect step", "Next sweep", "Finish step"))
+            self.inspect_buttons.on_click(self._on_inspect)
+            self.inspect_text = gui.add_markdown("Pause the world inside a step: *Inspect step* runs the next step "
+                                                 "up to the end of its first sweep, *Next sweep* one sweep further. "
+                                                 "Arrows: each contact's normal impulse; points: its residual "
+                                                 "(green solved, red not). Select a body to list its sub-bodies.")
+            self.sweep_plot = gui.add_uplot((np.zeros(1), np.full(1, LOG_FLOOR)),
+                                            ({"label": "sweep"}, {"label": "log10 residual RMS [m/s]",
+                                                                  "stroke": "#9467bd"}),
+                                            title="This step's residual, log10 m/s, by sweep",
+                                            scales={"x": {"time": False}}, aspect=1.6)
         with gui.add_folder("View"):
             self.colors = gui.add_dropdown("Colour by", COLOR_MODES, initial_value="shape",
                                            hint="speed: blue at rest, red moving (jitter shows up)")
@@ -200,6 +213,13 @@ class ControlPanel:
         elif choice == "Reset":
             self.selected = None
             self.sim.submit("reset", lambda s: s.load(), on_error=self._notify(event, "Reset"))
+
+    @_user_action
+    def _on_inspect(self, event) -> None:
+        action = {"Inspect step": "begin", "Next sweep": "next", "Finish step": "finish"}[event.target.value]
+        body = self.selected
+        self.sim.submit(f"inspect: {event.target.value.lower()}", lambda s: s.inspect(action, body),
+                        on_error=self._notify(event, "Inside the solver"))
 
     @_user_action
     def _on_solver(self, event) -> None:
@@ -371,6 +391,37 @@ class ControlPanel:
         self._set(self.selection, "content", text)
         self._set(self.remove, "disabled", selected is None)
         self._set(self.fracture, "disabled", selected is None)
+        self._refresh_inspection(snap.inspection)
+
+    def _refresh_inspection(self, view) -> None:
+        if view is None:
+            if self._inspected is not None:
+                self._set(self.inspect_text, "content", "No step paused: *Inspect step* pauses the next one.")
+                self._inspected = None
+            return
+        if self._inspected == view["label"] + str(view["body"]):
+            return
+        self._inspected = view["label"] + str(view["body"])
+        c = view["contacts"]
+        lines = [f"**{view['label']}**", "",
+                 f"{len(c['impulse'])} contact points; largest normal impulse {c['impulse'].max(initial=0.0):.3g} N s; "
+                 f"residual RMS {view['residuals'][-1]:.3g} m/s"]
+        sub = view["sub_bodies"]
+        if view["body"] is None:
+            lines.append("\nSelect a body to see its sub-bodies.")
+        elif sub is None:
+            lines.append(f"\nBody {view['body']}: no sub-bodies (a static body, or a PGS solver: its rows act on "
+                         "the body itself, one after another).")
+        else:
+            lines += ["", f"Sub-bodies of body {view['body']} (split {sub['split']:.3g}), velocity [m/s]:", "",
+                      "| block | v_x | v_y | v_z |", "|---|--:|--:|--:|"]
+            for block, v in zip(sub["blocks"], sub["linear"]):
+                lines.append(f"| {block} | {v[0]:.4g} | {v[1]:.4g} | {v[2]:.4g} |")
+            merged = sub["merged"][0]
+            lines.append(f"| **merged** | {merged[0]:.4g} | {merged[1]:.4g} | {merged[2]:.4g} |")
+        self._set(self.inspect_text, "content", "\n".join(lines))
+        residuals = view["residuals"]
+        self.sweep_plot.data = (np.arange(1, len(residuals) + 1, dtype=np.float64), _decades(residuals))
 
     def _sync(self, handle, value) -> None:
         """Show the world's value without firing the widget's callback again."""

@@ -15,6 +15,11 @@ PALETTE = np.array([
 ], dtype=np.uint8)
 COLOR_MODES = ("shape", "speed")
 SPEED_RANGE = (-3.0, 1.0)  # log10 |v| [m/s] mapped from blue (at rest) to red (moving)
+ARROW = np.array([255, 0, 200], dtype=np.uint8)  # an inspected step's impulse arrows: magenta
+ARROW_LENGTH = 0.8  # [m] the arrow of the largest normal impulse; others by the cube root of their share,
+#                     so a light body's impulse under a heavy one's still shows
+INSPECTED_OPACITY = 0.3  # bodies while a step is inspected: the arrows inside them show through
+RESIDUAL_RANGE = (-6.0, 0.0)  # log10 residual [m/s] of an inspected point, from green (solved) to red
 ASLEEP_SHADE = 0.45  # a sleeping body's colour is scaled by this: dimmed, its hue kept
 
 
@@ -36,6 +41,7 @@ class WorldView:
         self._meshes: dict[tuple, tuple] = {}  # key -> (vertices, faces): a hull's mesh is built once per world
         self._colors_key = None
         self._contacts_shown = False
+        self._inspection_shown = False
         self._base_colors = np.zeros((0, 3), dtype=np.uint8)
         self._static_mask = np.zeros(0, dtype=bool)
 
@@ -53,6 +59,7 @@ class WorldView:
                 if colors is not None:
                     batch.handle.batched_colors = colors[idx]
             self._show_contacts(snap.contacts)
+            self._show_inspection(snap.inspection)
 
     # ------------------------------------------------------------------ structure
     def _new_world(self, snap) -> None:
@@ -143,6 +150,40 @@ class WorldView:
         self.server.scene.add_line_segments("/contacts/normals", segments, colors=(255, 220, 0), thickness=2.0,
                                             thickness_units="screen")
         self._contacts_shown = True
+
+
+    def _show_inspection(self, inspection) -> None:
+        """A paused step's contacts: each point coloured by its residual, an arrow along its normal
+        growing with its normal impulse (the largest ARROW_LENGTH long)."""
+        self._set_opacity(None if inspection is None else INSPECTED_OPACITY)
+        if inspection is None:
+            if self._inspection_shown:
+                self.server.scene.remove_by_name("/inspection")
+                self._inspection_shown = False
+            return
+        c = inspection["contacts"]
+        p, n = c["point"].astype(np.float32), c["normal"].astype(np.float32)
+        if len(p) == 0:
+            p, n = np.zeros((1, 3), np.float32), np.zeros((1, 3), np.float32)
+            impulse, residual = np.zeros(1), np.zeros(1)
+        else:
+            impulse, residual = c["impulse"], c["residual"]
+        t = (np.log10(np.maximum(residual, 1e-12)) - RESIDUAL_RANGE[0]) / (RESIDUAL_RANGE[1] - RESIDUAL_RANGE[0])
+        t = np.clip(t, 0.0, 1.0)[:, None]
+        colors = ((1.0 - t) * np.array([40, 200, 60]) + t * np.array([230, 30, 30])).astype(np.uint8)
+        self.server.scene.add_point_cloud("/inspection/points", p, colors=colors, point_size=0.08,
+                                          point_shape="circle")
+        length = ARROW_LENGTH * np.cbrt(impulse / max(float(impulse.max()), 1e-12))
+        segments = np.stack([p, p + n * length[:, None].astype(np.float32)], axis=1)
+        self.server.scene.add_line_segments("/inspection/impulses", segments, colors=tuple(int(x) for x in ARROW),
+                                            thickness=4.0, thickness_units="screen")
+        self._inspection_shown = True
+
+
+    def _set_opacity(self, opacity: float | None) -> None:
+        for batch in self._batches.values():
+            if batch.handle.opacity != opacity:
+                batch.handle.opacity = opacity
 
 
 def configure_lighting(scene) -> None:

@@ -59,6 +59,7 @@ class Snapshot:
     playing: bool
     recording: bool
     contacts: dict | None = None  # "point", "normal" when contact drawing is on
+    inspection: dict | None = None  # a step paused after a sweep (Simulation.inspect): what it shows
     error: str | None = None  # the last SimulationError, until the world plays again
 
 
@@ -104,6 +105,9 @@ class Simulation:
         self.draw_contacts = False
         self.recorder = None
         self.last_error: str | None = None  # why the world paused itself (a diverged step)
+        self.inspection = None  # sandbox.inspection.StepInspection while a step is looked inside
+        self.inspect_body: int | None = None  # whose sub-bodies the inspection lists
+        self._inspect_logged = 0  # events logged before the inspected step (its own are new)
         self._queue: queue.Queue[Command] = queue.Queue()
         self._latest: Snapshot | None = None
         self._latest_lock = threading.Lock()
@@ -155,6 +159,7 @@ class Simulation:
                       reserve_pieces=DEBRIS_RESERVE, reserve_kinds=DEBRIS_KINDS,
                       **{k: v for k, v in options.items() if v is not None})
         world.prepare_edits()  # compile what a drop launches now, not on the first click
+        self.inspection = None  # an inspected step of the old world goes with it
         self.stop_recording()
         if old is not None:
             old.close()
@@ -170,6 +175,7 @@ class Simulation:
     def apply(self, event: EventSpec) -> None:
         """An edit of the running world, logged like a scripted event (recordings replay it),
         stamped with the world's current time."""
+        self._end_inspection()  # an edit applies between steps
         event.time = self.world.step_count * self.world.dt
         logged = len(self.world.applied_events)
         self.world.apply_event(event)
@@ -180,6 +186,40 @@ class Simulation:
         panel's edits, and those a step applies itself (scripted events, impact fractures)."""
         if any(e.kind in BODY_LIST_KINDS for _, e in self.world.applied_events[logged:]):
             self._generation += 1
+
+    def inspect(self, action: str, body: int | None = None) -> None:
+        """The "Inside the solver" panel: ``begin`` pauses the world and runs the next step up to
+        the end of its first sweep, ``next`` to the end of the next sweep (the step completes
+        after its last), ``finish`` the rest of the step. ``body``: whose sub-bodies to list."""
+        self.inspect_body = body
+        if action == "finish":
+            self._end_inspection()
+            return
+        self.playing = False
+        if self.inspection is None:
+            self._inspect_logged = len(self.world.applied_events)
+            self.inspection = self.world.inspect_step()
+        try:
+            sweep = self.inspection.advance()
+        except SimulationError as exc:
+            self.inspection = None
+            self._paused_by(exc)
+            return
+        if sweep is None:  # that was the step's last sweep: the step is done
+            self.inspection = None
+            self._after_step(0.0, profiled=False, logged=self._inspect_logged)
+
+    def _end_inspection(self) -> None:
+        """Finish an inspected step (it counts as a step: recorded, published)."""
+        if self.inspection is not None:
+            inspection, self.inspection = self.inspection, None
+            try:
+                inspection.finish()
+            except SimulationError as exc:
+                self._paused_by(exc)
+                return
+            self._after_step(0.0, profiled=False, logged=self._inspect_logged)
+            self._publish(new_frame=True)
 
     def step_once(self) -> None:
         self.playing = False
@@ -250,7 +290,10 @@ class Simulation:
     def _step(self) -> bool:
         """One step. Once per stats window the step is profiled stage by stage (a profiled step
         launches a kernel per phase; every launch mode gives bit-identical results), the others
-        run at full speed and are timed as a whole."""
+        run at full speed and are timed as a whole. A step being inspected is finished instead."""
+        if self.inspection is not None:
+            self._end_inspection()
+            return True
         s = self._stats
         profiled = s.timing_ms == {} or s.steps == 0
         profiler = self.world.profiler
@@ -262,21 +305,31 @@ class Simulation:
         try:
             self.world.step(1)
         except SimulationError as exc:
-            self.playing = False
-            self.last_error = str(exc)
-            self.log(f"[sandbox] paused: {exc}")
+            self._paused_by(exc)
             return False
         finally:
             profiler.enabled = False
-        now = time.perf_counter()
-        if now - t0 > self.SLOW_STEP_S:
-            self.log(f"[sandbox] slow step {self.world.step_count}: {1e3 * (now - t0):.0f} ms"
+        seconds = time.perf_counter() - t0
+        if seconds > self.SLOW_STEP_S:
+            self.log(f"[sandbox] slow step {self.world.step_count}: {1e3 * seconds:.0f} ms"
                      + (" (the world's first: its kernels compile)" if self.world.step_count == 1 else ""))
+        self._after_step(seconds, profiled, logged)
+        return True
+
+    def _paused_by(self, exc: SimulationError) -> None:
+        self.playing = False
+        self.last_error = str(exc)
+        self.log(f"[sandbox] paused: {exc}")
+
+    def _after_step(self, seconds: float, profiled: bool, logged: int) -> None:
+        """What every completed step updates: the body list's generation, the stats, the recording."""
+        s = self._stats
+        now = time.perf_counter()
         self._note_body_list_edits(logged)
         if profiled:
             s.sampled_ms = self.world.timing_ms()
-        else:
-            s.step_seconds += now - t0
+        elif seconds > 0.0:
+            s.step_seconds += seconds
             s.timed_steps += 1
         if self.recorder is not None:
             self.recorder.capture()
@@ -290,7 +343,21 @@ class Simulation:
             if s.timed_steps:
                 s.timing_ms["total"] = 1e3 * s.step_seconds / s.timed_steps
             s.window_start, s.steps, s.sim_seconds, s.step_seconds, s.timed_steps = now, 0, 0.0, 0.0, 0
-        return True
+
+    def _inspection_view(self) -> dict | None:
+        """What the panel and the view show of a paused step (None when no step is paused)."""
+        inspection = self.inspection
+        if inspection is None or inspection.sweep is None:
+            return None
+        view = {"label": f"step {self.world.step_count + 1}, " + _describe(inspection.sweep),
+                "residuals": np.asarray(inspection.residuals, dtype=np.float64),
+                "contacts": inspection.contacts(), "body": self.inspect_body, "sub_bodies": None}
+        if self.inspect_body is not None:
+            try:
+                view["sub_bodies"] = inspection.sub_bodies(self.inspect_body)
+            except SandboxError:  # a static body has no sub-bodies
+                pass
+        return view
 
     def _publish(self, new_frame: bool = False) -> None:
         self._last_publish = time.perf_counter()
@@ -331,10 +398,16 @@ class Simulation:
             playing=self.playing,
             recording=self.recorder is not None,
             contacts=contacts,
+            inspection=self._inspection_view(),
             error=self.last_error,
         )
         with self._latest_lock:
             self._latest = snap
+
+
+def _describe(sweep) -> str:
+    text = (f"substep {sweep.substep + 1}/{sweep.substeps}: {sweep.phase} sweep {sweep.index + 1}/{sweep.count}")
+    return text + (" (it also applied the next substep's warm start)" if sweep.carries_warm_start else "")
 
 
 def _in_background(callback, value) -> None:

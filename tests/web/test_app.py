@@ -133,6 +133,14 @@ def _choose(page, label: str, option: str) -> None:
     page.get_by_role("option", name=option, exact=True).click()
 
 
+def _magenta_pixels(canvas) -> int:
+    """Pixels of the canvas in the inspected step's arrow colour (web/render.py ARROW)."""
+    import matplotlib.image
+
+    rgb = (matplotlib.image.imread(io.BytesIO(canvas.screenshot()), format="png")[..., :3] * 255).astype(int)
+    return int(np.sum((rgb[..., 0] > 200) & (rgb[..., 1] < 90) & (rgb[..., 2] > 150)))
+
+
 def test_browser_session(browser, server):
     import matplotlib.image
 
@@ -158,7 +166,7 @@ def test_browser_session(browser, server):
     # step slower than 0.5 s; past the world's first (which compiles its kernels), the first drop
     # of every shape mix logs none: the world was built ready for them (web/simulation.py).
     deadline = time.monotonic() + 60
-    while _step(page) < 2 and time.monotonic() < deadline:
+    while _step(page) < 10 and time.monotonic() < deadline:  # the first steps compile (fused, then profiled)
         time.sleep(0.2)
     logged = len(server.lines)
     _choose(page, "Shapes", "boxes")
@@ -226,6 +234,28 @@ def test_browser_session(browser, server):
             break
     else:
         raise AssertionError("clicking above the pedestal never selected the box on it")
+    # Inside the solver, under mass splitting: the next step paused after its first sweep shows
+    # the contacts' impulse arrows (magenta, through bodies drawn translucent) and the selected
+    # box's sub-bodies, one per contact point touching it, with their merge; one sweep further is
+    # the substep's relax sweep.
+    _choose(page, "Solver", "mass-splitting")
+    server.wait_for(r"\[sandbox\] solver mass-splitting", 60)
+    page.get_by_text("Inside the solver", exact=True).click()
+    arrows_before = _magenta_pixels(canvas)
+    page.get_by_role("button", name="Inspect step").click()
+    page.get_by_text(re.compile(r"substep 1/15: biased sweep 1/1")).wait_for(timeout=60_000)
+    page.get_by_text(re.compile(r"Sub-bodies of body 1 \(split")).wait_for(timeout=30_000)
+    assert page.get_by_text(re.compile(r"^merged$")).count() == 1
+    time.sleep(1.0)  # the next rendered frame
+    arrows = _magenta_pixels(canvas)
+    page.screenshot(path=str(ARTIFACTS / "web_inspection.png"))
+    assert arrows > arrows_before + 500, (arrows_before, arrows)
+    page.get_by_role("button", name="Next sweep").click()
+    page.get_by_text(re.compile(r"substep 1/15: relax sweep 1/1")).wait_for(timeout=30_000)
+    page.get_by_role("button", name="Finish step").click()
+    page.get_by_text(re.compile(r"No step paused")).wait_for(timeout=30_000)
+    page.get_by_role("button", name="Play").click()
+
     n2 = int(_wait_status(page, r"(\d+) bodies").group(1))
     page.get_by_role("button", name="Fracture selected").click()
     _wait_status(page, rf"{n2 + 7} bodies")
@@ -235,7 +265,7 @@ def test_browser_session(browser, server):
     page.get_by_label("Contact points", exact=True).check()
     server.wait_for(r"\[sandbox\] contacts", 30)
     _choose(page, "Scene", "box_on_plane")
-    _wait_status(page, r"box_on_plane · 1 bodies · pgs-colored × 15")
+    _wait_status(page, r"box_on_plane · 1 bodies · mass-splitting × 15")
     page.close()
 
 
