@@ -9,7 +9,7 @@ import pytest
 from sandbox import SandboxError, Scene
 from sandbox.scene import BodySpec, PlaneSpec, ShapeSpec
 from web.debris import DEBRIS_MIXES, debris_bodies
-from web.render import camera_for
+from web.render import PANEL_SHIFT, camera_for
 from web.shapes import body_shape, shape_mesh, static_meshes
 
 
@@ -89,7 +89,11 @@ def test_debris_errors_are_sandbox_errors():
         debris_bodies(snap, 5, "gravel", seed=0)
 
 
-def test_camera_frames_the_bodies_from_the_front():
+def test_camera_frames_the_bodies_from_the_front_left_of_the_panel():
+    """It looks at a point right of the bodies' centre, so they sit in the part of the view the
+    panel (docked right) leaves free, and from in front (-y) and above."""
     eye, target = camera_for(np.array([[-10.0, 0.0, 0.0], [10.0, 0.0, 4.0]]))
-    assert np.allclose(target, [0.0, 0.0, 2.0])
-    assert eye[1] < -10.0 and eye[2] > target[2]  # in front (-y), above
+    radius = 0.6 * np.linalg.norm([20.0, 0.0, 4.0])
+    assert np.allclose(target, [PANEL_SHIFT * radius, 0.0, 2.0])
+    assert 0.0 < PANEL_SHIFT < 1.0
+    assert eye[1] < -10.0 and eye[2] > target[2]
