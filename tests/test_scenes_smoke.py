@@ -1,4 +1,6 @@
-"""Every shipped scene loads and runs 60 steps with its own solver settings, staying finite."""
+"""Every shipped scene loads and runs 60 steps with its own solver settings, staying finite, and
+ends bit for bit in the stored state (tests/state_hashes.py: the QUICK hash of its own-solver
+case, checked here so that it costs no second world)."""
 
 from pathlib import Path
 
@@ -6,6 +8,7 @@ import numpy as np
 import pytest
 
 from sandbox import Scene, World
+from tests import state_hashes as sh
 
 SCENES = sorted((Path(__file__).resolve().parent.parent / "scenes").glob("*.toml"))
 
@@ -21,3 +24,8 @@ def test_scene_runs_60_steps(path):
     assert np.isfinite(m["kinetic_energy"])
     # nothing fell through the floor: every body is above the lowest static geometry
     assert st["position"][:, 2].min() > -5.0
+    stored = sh.stored()
+    if stored is not None:  # else tests/test_state_hashes.py skips, saying how to generate them
+        case = sh.own_case(path)
+        problem = sh.mismatch(case, stored.get(case.id), sh.hash_state(st))
+        assert problem is None, problem
