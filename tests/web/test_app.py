@@ -246,10 +246,14 @@ def test_browser_session(browser, server):
     page.get_by_text(re.compile(r"substep 1/15: biased sweep 1/1")).wait_for(timeout=60_000)
     page.get_by_text(re.compile(r"Sub-bodies of body 1 \(split")).wait_for(timeout=30_000)
     assert page.get_by_text(re.compile(r"^merged$")).count() == 1
-    time.sleep(1.0)  # the next rendered frame
-    arrows = _magenta_pixels(canvas)
+    # Before, no pixel has the arrows' colour (measured 0); the arrows are 4 px wide, so even a
+    # few make hundreds (measured 442 to over 900 after the first rendered frame).
+    deadline, arrows = time.monotonic() + 20, 0
+    while arrows <= arrows_before + 100 and time.monotonic() < deadline:
+        time.sleep(0.5)
+        arrows = _magenta_pixels(canvas)
     page.screenshot(path=str(ARTIFACTS / "web_inspection.png"))
-    assert arrows > arrows_before + 500, (arrows_before, arrows)
+    assert arrows > arrows_before + 100, (arrows_before, arrows)
     page.get_by_role("button", name="Next sweep").click()
     page.get_by_text(re.compile(r"substep 1/15: relax sweep 1/1")).wait_for(timeout=30_000)
     page.get_by_role("button", name="Finish step").click()
