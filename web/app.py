@@ -17,6 +17,8 @@ import threading
 import time
 from pathlib import Path
 
+import numpy as np
+
 from sandbox import SandboxError, resolve_arch, resolve_scene
 
 from .panel import ControlPanel
@@ -91,6 +93,7 @@ class SandboxApp:
             raise SandboxError(f"port {self.requested_port} became busy while starting; pass another --port")
         self._setup_scene()
         self.view = WorldView(self.server, on_pick=self._on_pick)
+        self.twin_view: WorldView | None = None  # the compare view's second world, while it is on
         self.panel = ControlPanel(self.server, self.sim, self.recordings_dir)
         if background:
             self._thread = threading.Thread(target=self._render_loop, name="render", daemon=True)
@@ -127,9 +130,23 @@ class SandboxApp:
         s.initial_camera.look_at = target
         s.initial_camera.up = (0.0, 0.0, 1.0)
 
-    def _frame_camera(self, snap) -> None:
-        """Point every open tab's camera at the bodies of a newly built world."""
-        eye, target = camera_for(snap.positions)
+    def _show_twin(self, snap, mode: str) -> None:
+        """The compare view's second world, drawn COMPARE_GAP to the right of the first."""
+        if snap.twin is None:
+            if self.twin_view is not None:
+                self.twin_view.clear()
+                self.twin_view = None
+            return
+        if self.twin_view is None:
+            self.server.scene.add_frame("/twin", show_axes=False, position=(snap.twin.offset, 0.0, 0.0))
+            self.twin_view = WorldView(self.server, root="/twin")
+            both = np.concatenate([snap.positions, snap.twin.positions + [snap.twin.offset, 0.0, 0.0]])
+            self._frame_camera(snap, both)
+        self.twin_view.show(snap.twin, None, mode)
+
+    def _frame_camera(self, snap, positions=None) -> None:
+        """Point every open tab's camera at the bodies of a newly built world (or at ``positions``)."""
+        eye, target = camera_for(snap.positions if positions is None else positions)
         self.server.initial_camera.position = eye
         self.server.initial_camera.look_at = target
         for client in self.server.get_clients().values():
@@ -150,12 +167,14 @@ class SandboxApp:
             snap = self.sim.latest()
             selected, mode = self.panel.selected, self.panel.color_mode  # read once: other threads write them
             paused = snap.inspection["label"] if snap.inspection is not None else None  # a sweep of an inspected step
-            key = (snap.world_id, snap.generation, snap.step, selected, mode, snap.contacts is None, paused)
+            twin = (snap.twin.generation, snap.twin.offset) if snap.twin is not None else None
+            key = (snap.world_id, snap.generation, snap.step, selected, mode, snap.contacts is None, paused, twin)
             if key != last_key:  # a new frame (or a new look): skipped snapshots are never drawn
                 if framed is not None and snap.scene.source != framed:
                     self._frame_camera(snap)  # another scene: frame its bodies (a reset keeps the view)
                 framed = snap.scene.source
                 self.view.show(snap, selected, mode)
+                self._show_twin(snap, mode)
                 last_key = key
                 frames += 1
             now = time.perf_counter()

@@ -128,6 +128,17 @@ class ControlPanel:
             self.fracture.on_click(self._on_fracture)
             self.remove = gui.add_button("Remove selected", disabled=True)
             self.remove.on_click(self._on_remove)
+        with gui.add_folder("Compare", expand_by_default=False):
+            self.compare = gui.add_dropdown("Right-hand world", ("off", *SOLVERS), initial_value="off",
+                                            hint="A second world of the same scene with this solver, beside the "
+                                            "first: both restart, then take the same drops, removals and settings")
+            self.compare.on_update(self._on_compare)
+            self.compare_plot = gui.add_uplot((np.zeros(1), np.full(1, LOG_FLOOR), np.full(1, LOG_FLOOR)),
+                                              ({"label": "step"},
+                                               {"label": "left: log10 KE [J]", "stroke": "#d62728"},
+                                               {"label": "right: log10 KE [J]", "stroke": "#1f77b4"}),
+                                              title="Kinetic energy, both worlds, log10 J",
+                                              scales={"x": {"time": False}}, aspect=1.6)
         with gui.add_folder("Inside the solver", expand_by_default=False):
             self.inspect_buttons = gui.add_button_group("Step", ("Inspect step", "Next sweep", "Finish step"))
             self.inspect_buttons.on_click(self._on_inspect)
@@ -213,6 +224,12 @@ class ControlPanel:
         elif choice == "Reset":
             self.selected = None
             self.sim.submit("reset", lambda s: s.load(), on_error=self._notify(event, "Reset"))
+
+    @_user_action
+    def _on_compare(self, event) -> None:
+        choice = self.compare.value
+        solver = None if choice == "off" else choice
+        self.sim.submit(f"compare {choice}", lambda s: s.compare(solver), on_error=self._notify(event, "Compare"))
 
     @_user_action
     def _on_inspect(self, event) -> None:
@@ -338,6 +355,7 @@ class ControlPanel:
         self._sync(self.solver, snap.solver)
         self._sync(self.iterations, min(snap.iterations, MAX_ITERATIONS))
         self._sync(self.formulation, snap.formulation)
+        self._sync(self.compare, snap.twin.solver if snap.twin is not None else "off")
         self._sync(self.gravity, snap.gravity_on)
         for e, box in self.effects.items():
             self._sync(box, e in snap.effects)
@@ -348,6 +366,8 @@ class ControlPanel:
             state += f" — {snap.error}"
         rec = " · ⏺ recording" if snap.recording else ""
         paper = " (paper's scheme)" if snap.formulation == "paper" else ""
+        if snap.twin is not None:
+            rec += f" ‖ right: {snap.twin.solver}, {len(snap.twin.bodies)} bodies"
         self._set(self.status, "content", f"**{self.sim.scene_path.stem}** · {len(snap.bodies)} bodies · "
                                           f"{snap.solver} × {snap.iterations}{paper} · {state}{rec}")
         m, t = snap.metrics, snap.timing_ms
@@ -377,6 +397,8 @@ class ControlPanel:
             self._plotted = (snap.world_id, snap.step)
             self.ke_plot.data = (h["step"], _decades(h["kinetic_energy"]))
             self.res_plot.data = (h["step"], _decades(h["residual_rms"]))
+            if snap.twin is not None and len(snap.twin.history) == len(h["step"]):
+                self.compare_plot.data = (h["step"], _decades(h["kinetic_energy"]), _decades(snap.twin.history))
         selected = self.selected  # read once: GUI callbacks may change it meanwhile
         if selected is not None and selected >= len(snap.bodies):
             selected = self.selected = None

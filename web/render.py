@@ -14,7 +14,7 @@ PALETTE = np.array([
     [178, 121, 162], [255, 157, 166], [157, 117, 93], [186, 176, 172], [245, 133, 24],
 ], dtype=np.uint8)
 COLOR_MODES = ("shape", "speed")
-SPEED_RANGE = (-3.0, 1.0)  # log10 |v| [m/s] mapped from blue (at rest) to red (moving)
+SPEED_RANGE = (-5.0, 1.0)  # log10 |v| [m/s] mapped from blue (at rest) to red (moving): 1e-4 m/s of jitter shows
 ARROW = np.array([255, 0, 200], dtype=np.uint8)  # an inspected step's impulse arrows: magenta
 ARROW_LENGTH = 0.8  # [m] the arrow of the largest normal impulse; others by the cube root of their share,
 #                     so a light body's impulse under a heavy one's still shows
@@ -32,9 +32,10 @@ class _Batch:
 class WorldView:
     """Keeps a viser scene in step with the simulation's snapshots."""
 
-    def __init__(self, server, on_pick=None):
+    def __init__(self, server, on_pick=None, root: str = ""):
         self.server = server
         self.on_pick = on_pick  # callable(body index)
+        self.root = root  # scene-tree prefix: "" for the world, "/twin" for the compare view's second
         self._world_id = None
         self._generation = None
         self._batches: dict[tuple, _Batch] = {}
@@ -44,6 +45,14 @@ class WorldView:
         self._inspection_shown = False
         self._base_colors = np.zeros((0, 3), dtype=np.uint8)
         self._static_mask = np.zeros(0, dtype=bool)
+
+    def clear(self) -> None:
+        """Take everything this view drew out of the scene (the compare view switched off)."""
+        self.server.scene.remove_by_name(self.root or "/bodies")
+        for batch in self._batches.values():
+            batch.handle.remove()
+        self._batches.clear()
+        self._world_id = self._generation = None
 
     def show(self, snap, selected: int | None = None, color_mode: str = "shape") -> None:
         with self.server.atomic():
@@ -63,11 +72,11 @@ class WorldView:
 
     # ------------------------------------------------------------------ structure
     def _new_world(self, snap) -> None:
-        self.server.scene.remove_by_name("/static")
+        self.server.scene.remove_by_name(f"{self.root}/static")
         lo, hi = _bounds(snap.positions)
         half = float(max(20.0, 2.0 * np.max(hi - lo)))
         for name, verts, faces, color in static_meshes(snap.scene, half):
-            self.server.scene.add_mesh_simple(name, np.asarray(verts, dtype=np.float32),
+            self.server.scene.add_mesh_simple(self.root + name, np.asarray(verts, dtype=np.float32),
                                               np.asarray(faces, dtype=np.uint32), color=color,
                                               flat_shading=True, cast_shadow=False, receive_shadow=False)
         self._world_id = snap.world_id
@@ -92,7 +101,7 @@ class WorldView:
                 self._meshes[key] = shape_mesh(key, snap.bodies[members[0]])
             vertices, faces = self._meshes[key]
             handle = self.server.scene.add_batched_meshes_simple(
-                f"/bodies/{_node_name(key)}", vertices, faces,
+                f"{self.root}/bodies/{_node_name(key)}", vertices, faces,
                 batched_wxyzs=snap.orientations[idx], batched_positions=snap.positions[idx],
                 batched_scales=scales[idx], batched_colors=np.zeros((len(idx), 3), dtype=np.uint8),
                 flat_shading=key[0] != "sphere", cast_shadow=False, receive_shadow=False)
@@ -138,16 +147,16 @@ class WorldView:
     def _show_contacts(self, contacts) -> None:
         if contacts is None:
             if self._contacts_shown:
-                self.server.scene.remove_by_name("/contacts")
+                self.server.scene.remove_by_name(f"{self.root}/contacts")
                 self._contacts_shown = False
             return
         p, n = contacts["point"], contacts["normal"]
         if len(p) == 0:
             p, n = np.zeros((1, 3), np.float32), np.zeros((1, 3), np.float32)
-        self.server.scene.add_point_cloud("/contacts/points", p, colors=(255, 30, 30), point_size=0.05,
+        self.server.scene.add_point_cloud(f"{self.root}/contacts/points", p, colors=(255, 30, 30), point_size=0.05,
                                           point_shape="circle")
         segments = np.stack([p, p + 0.3 * n], axis=1)
-        self.server.scene.add_line_segments("/contacts/normals", segments, colors=(255, 220, 0), thickness=2.0,
+        self.server.scene.add_line_segments(f"{self.root}/contacts/normals", segments, colors=(255, 220, 0), thickness=2.0,
                                             thickness_units="screen")
         self._contacts_shown = True
 
@@ -158,7 +167,7 @@ class WorldView:
         self._set_opacity(None if inspection is None else INSPECTED_OPACITY)
         if inspection is None:
             if self._inspection_shown:
-                self.server.scene.remove_by_name("/inspection")
+                self.server.scene.remove_by_name(f"{self.root}/inspection")
                 self._inspection_shown = False
             return
         c = inspection["contacts"]
@@ -171,11 +180,11 @@ class WorldView:
         t = (np.log10(np.maximum(residual, 1e-12)) - RESIDUAL_RANGE[0]) / (RESIDUAL_RANGE[1] - RESIDUAL_RANGE[0])
         t = np.clip(t, 0.0, 1.0)[:, None]
         colors = ((1.0 - t) * np.array([40, 200, 60]) + t * np.array([230, 30, 30])).astype(np.uint8)
-        self.server.scene.add_point_cloud("/inspection/points", p, colors=colors, point_size=0.08,
+        self.server.scene.add_point_cloud(f"{self.root}/inspection/points", p, colors=colors, point_size=0.08,
                                           point_shape="circle")
         length = ARROW_LENGTH * np.cbrt(impulse / max(float(impulse.max()), 1e-12))
         segments = np.stack([p, p + n * length[:, None].astype(np.float32)], axis=1)
-        self.server.scene.add_line_segments("/inspection/impulses", segments, colors=tuple(int(x) for x in ARROW),
+        self.server.scene.add_line_segments(f"{self.root}/inspection/impulses", segments, colors=tuple(int(x) for x in ARROW),
                                             thickness=4.0, thickness_units="screen")
         self._inspection_shown = True
 

@@ -60,6 +60,7 @@ class Snapshot:
     recording: bool
     contacts: dict | None = None  # "point", "normal" when contact drawing is on
     inspection: dict | None = None  # a step paused after a sweep (Simulation.inspect): what it shows
+    twin: "Twin | None" = None  # the compare view's second world (Simulation.compare)
     error: str | None = None  # the last SimulationError, until the world plays again
 
 
@@ -108,6 +109,9 @@ class Simulation:
         self.inspection = None  # sandbox.inspection.StepInspection while a step is looked inside
         self.inspect_body: int | None = None  # whose sub-bodies the inspection lists
         self._inspect_logged = 0  # events logged before the inspected step (its own are new)
+        self.twin = None  # the compare view's second world (compare), stepped and edited with the first
+        self._twin_offset = 0.0
+        self._twin_generation = 0
         self._queue: queue.Queue[Command] = queue.Queue()
         self._latest: Snapshot | None = None
         self._latest_lock = threading.Lock()
@@ -161,6 +165,7 @@ class Simulation:
         world.prepare_edits()  # compile what a drop launches now, not on the first click
         self.inspection = None  # an inspected step of the old world goes with it
         self.stop_recording()
+        twin_solver = self.twin.solver if self.twin is not None else None
         if old is not None:
             old.close()
         self.world = world
@@ -170,7 +175,35 @@ class Simulation:
         self._generation += 1
         for series in self._history.values():
             series.clear()
+        self._set_twin(twin_solver)
         self._publish()
+
+    def compare(self, solver: str | None) -> None:
+        """The compare view: a second world of the same scene with ``solver`` (None: off), started
+        with the first from the scene's beginning, stepped with it and given the same edits (drops,
+        removals, iterations, formulation, gravity, effects; not the first world's solver)."""
+        if solver is None:
+            self._set_twin(None)
+            return
+        self.load(self.world.scene)  # both from the start: the same inputs from here on
+        self._set_twin(solver)
+
+    def _set_twin(self, solver: str | None) -> None:
+        from sandbox import World
+
+        if self.twin is not None:
+            self.twin.close()
+            self.twin = None
+        self._history["twin_kinetic_energy"] = collections.deque(maxlen=HISTORY)
+        if solver is None:
+            return
+        w = self.world
+        self.twin = World(w.scene, solver=solver, iterations=w.iterations, arch=self.arch, profile=False,
+                          formulation=w.formulation, reserve_pieces=DEBRIS_RESERVE, reserve_kinds=DEBRIS_KINDS)
+        self.twin.prepare_edits()
+        pos = w.state(("position",))["position"]
+        self._twin_offset = float(np.ptp(pos[:, 0])) + COMPARE_GAP if len(pos) else COMPARE_GAP
+        self._twin_generation += 1
 
     def apply(self, event: EventSpec) -> None:
         """An edit of the running world, logged like a scripted event (recordings replay it),
@@ -179,6 +212,10 @@ class Simulation:
         event.time = self.world.step_count * self.world.dt
         logged = len(self.world.applied_events)
         self.world.apply_event(event)
+        if self.twin is not None and event.kind != "solver":  # the twin keeps its own solver
+            self.twin.apply_event(event)
+            if event.kind in BODY_LIST_KINDS:
+                self._twin_generation += 1
         self._note_body_list_edits(logged)
 
     def _note_body_list_edits(self, logged: int) -> None:
@@ -322,8 +359,17 @@ class Simulation:
         self.log(f"[sandbox] paused: {exc}")
 
     def _after_step(self, seconds: float, profiled: bool, logged: int) -> None:
-        """What every completed step updates: the body list's generation, the stats, the recording."""
+        """What every completed step updates: the compare view's second world (one step too), the
+        body list's generation, the stats, the recording."""
         s = self._stats
+        if self.twin is not None:
+            twin_logged = len(self.twin.applied_events)
+            try:
+                self.twin.step(1)
+            except SimulationError as exc:
+                self._paused_by(SimulationError(f"the compare view's {self.twin.solver} world: {exc}"))
+            if any(e.kind in BODY_LIST_KINDS for _, e in self.twin.applied_events[twin_logged:]):
+                self._twin_generation += 1
         now = time.perf_counter()
         self._note_body_list_edits(logged)
         if profiled:
@@ -359,6 +405,18 @@ class Simulation:
                 pass
         return view
 
+    def _twin_view(self) -> Twin | None:
+        t = self.twin
+        if t is None:
+            return None
+        st = t.state(("position", "orientation", "linear_velocity"))
+        return Twin(world_id=self._world_id, generation=self._twin_generation,
+                    positions=st["position"].astype(np.float32), orientations=st["orientation"].astype(np.float32),
+                    speeds=np.linalg.norm(st["linear_velocity"], axis=1).astype(np.float32), asleep=t.asleep(),
+                    bodies=t.body_specs, scene=t.scene, solver=t.solver,
+                    history=np.asarray(self._history["twin_kinetic_energy"], dtype=np.float64),
+                    offset=self._twin_offset)
+
     def _publish(self, new_frame: bool = False) -> None:
         self._last_publish = time.perf_counter()
         w = self.world
@@ -368,6 +426,8 @@ class Simulation:
             self._history["step"].append(float(w.step_count))
             self._history["kinetic_energy"].append(max(m["kinetic_energy"], 1e-12))  # log-scale plot
             self._history["residual_rms"].append(max(m["residual_rms"], 1e-12))
+            if self.twin is not None:
+                self._history["twin_kinetic_energy"].append(max(self.twin.metrics()["kinetic_energy"], 1e-12))
         contacts = None
         if self.draw_contacts:
             c = w.contacts(("point", "normal"))
@@ -399,10 +459,33 @@ class Simulation:
             recording=self.recorder is not None,
             contacts=contacts,
             inspection=self._inspection_view(),
+            twin=self._twin_view(),
             error=self.last_error,
         )
         with self._latest_lock:
             self._latest = snap
+
+
+@dataclass(frozen=True)
+class Twin:
+    """The compare view's second world, as the view draws it (WorldView reads these names)."""
+
+    world_id: int
+    generation: int
+    positions: np.ndarray
+    orientations: np.ndarray
+    speeds: np.ndarray
+    asleep: np.ndarray
+    bodies: tuple
+    scene: Scene
+    solver: str
+    history: np.ndarray  # its kinetic energy at the steps of Snapshot.history["step"]
+    offset: float  # [m] along +x from the first world
+    contacts: None = None
+    inspection: None = None
+
+
+COMPARE_GAP = 4.0  # [m] between the two worlds of the compare view
 
 
 def _describe(sweep) -> str:

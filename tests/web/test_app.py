@@ -265,6 +265,20 @@ def test_browser_session(browser, server):
     _wait_status(page, rf"{n2 + 7} bodies")
     server.wait_for(r"\[sandbox\] fracture body 1 into 8 pieces", 30)
 
+    # The compare view: a second world of the scene with shuffled parallel PGS beside the first;
+    # both restart from the scene, and a drop reaches both.
+    page.get_by_text("Compare", exact=True).click()
+    _choose(page, "Right-hand world", "pgs-colored")
+    server.wait_for(r"\[sandbox\] compare pgs-colored", 120)
+    n3 = int(_wait_status(page, r"(\d+) bodies · mass-splitting.*right: pgs-colored, \d+ bodies").group(1))
+    _choose(page, "Shapes", "boxes")
+    page.get_by_role("button", name="Drop debris").click()
+    _wait_status(page, rf"{n3 + 20} bodies · mass-splitting.*right: pgs-colored, {n3 + 20} bodies")
+    time.sleep(2.0)
+    page.screenshot(path=str(ARTIFACTS / "web_compare.png"))
+    _choose(page, "Right-hand world", "off")
+    server.wait_for(r"\[sandbox\] compare off", 60)
+
     # Contact drawing and a scene change: the world is rebuilt, the solver kept.
     page.get_by_label("Contact points", exact=True).check()
     server.wait_for(r"\[sandbox\] contacts", 30)
