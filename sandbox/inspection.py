@@ -68,8 +68,10 @@ class StepInspection:
     def sub_bodies(self, body: int) -> dict | None:
         """Body ``body``'s sub-body velocities after the last sweep, one per block touching it
         (rows "linear" and "angular", (k, 3)), the blocks' contact points or manifolds
-        ("blocks"), the velocity before the sweep ("before") and the merged one ("merged": the
-        average of the sub-bodies, over-relaxed by the schedule's omega). None for the PGS
+        ("blocks") and whether each counts in n_b ("counted"; the others are idle, split apart:
+        Settings.idle_split), the velocity before the sweep ("before") and the merged one
+        ("merged": the average of the sub-bodies, over-relaxed by the schedule's omega), and the
+        counted blocks' split ("split"). None for the PGS
         solvers, which have no sub-bodies (every row acts on the body itself, in turn). A relax
         sweep that carries the next substep's warm start has it in its sub-bodies too."""
         self._require_pause()
@@ -79,7 +81,9 @@ class StepInspection:
         s = self.world.buf.blocks
         start, end = int(s.adj_start[body]), int(s.adj_start[body + 1])
         slots = s.adj.to_numpy()[start:end]
-        weight = float(s.weight[body])
+        blocks = slots // 2
+        counted = self._block_counted(blocks)
+        weight = np.where(counted, float(s.weight[body]), 1.0 / float(s.scale_idle[body]))[:, None]
         dv, dw = s.slot_dv.to_numpy()[slots], s.slot_dw.to_numpy()[slots]
         st = self.world.buf.bodies.state_numpy(("linear_velocity", "angular_velocity"))
         v1, w1 = st["linear_velocity"][body], st["angular_velocity"][body]
@@ -88,13 +92,22 @@ class StepInspection:
             gravity = self.world.gravity * self.world.dt / (self.world.substeps * self.sweep.substeps)
         v0, w0 = v1 - dv.sum(axis=0) - gravity, w1 - dw.sum(axis=0)  # the velocity the sweep started from
         return {
-            "blocks": slots // 2,
+            "blocks": blocks,
+            "counted": counted,
             "linear": v0 + dv / weight,
             "angular": w0 + dw / weight,
             "before": (v0, w0),
             "merged": (v1, w1),
-            "split": 1.0 / weight,
+            "split": float(s.scale[body]),
         }
+
+    def _block_counted(self, blocks: np.ndarray) -> np.ndarray:
+        """Whether each block counts in its bodies' n_b (rows.counted of its first point)."""
+        c = self.world.buf.contacts
+        first = blocks
+        if self.world._schedule.info.block == "manifold":
+            first = c.m_start.to_numpy()[blocks]
+        return self.world.buf.rows.counted.to_numpy()[first].astype(bool)
 
     # ------------------------------------------------------------------ helpers
     def _require_pause(self) -> None:

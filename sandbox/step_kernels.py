@@ -54,7 +54,7 @@ def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), h
         match_contact(hist, c, rows, match_distance, warm_factor, q)
     build_adjacency_loops(blk, c, bodies, rows, kind, mode, omega)
     for q in range(c.count[None]):
-        respond_row(rows, c, bodies, blk.scale, split, friction, q)
+        respond_row(rows, c, bodies, blk, split, friction, q)
 
 
 @ti.kernel

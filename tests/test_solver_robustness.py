@@ -25,10 +25,11 @@ PYRAMID_RESTING_KE = 1.0
 """[J] Mean kinetic energy of the last 60 frames of the 210-tonne pyramid: at rest, not ringing."""
 
 PYRAMID_SAG = {
-    # measured 2026-11-23 (docs/method-notes.md): the stability limit's deflection floor
-    ("mass-splitting", 4): "the top box sinks 0.28 m: the per-point split's K~ ~ 9 K lets a 4-substep step "
+    # the stability limit's deflection floor (docs/method-notes.md); top box measured 2026-11-24
+    # (the same on 36b2ef8 and on this code: 323.5 and 88.7 mm; 275 and 77 mm when first recorded)
+    ("mass-splitting", 4): "the top box sinks 0.32 m: the per-point split's K~ ~ 9 K lets a 4-substep step "
                            "carry ~9 Hz springs",
-    ("mass-splitting", 8): "the top box sinks 77 mm: at 8 substeps the per-point split carries ~19 Hz",
+    ("mass-splitting", 8): "the top box sinks 89 mm: at 8 substeps the per-point split carries ~19 Hz",
     ("block-mass-splitting", 4): "the top box sinks 79 mm: at 4 substeps the manifold split carries ~16 Hz",
 }
 

@@ -43,14 +43,14 @@ import math
 import taichi as ti
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
- UP_Z, GRAVITY_REACH, BAUMGARTE_RATE) = range(14)
+ UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE) = range(15)
 PARAM_COUNT = 16
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
 deflection [1], the support average's blend per step [1], the step [s], the up
 direction (against gravity; zero without gravity), the gap gravity closes in one step
 from rest, |g| dt^2 [m], and the paper formulation's Baumgarte rate [1/s] (0: the soft step;
-formulation.py)."""
+formulation.py), and the split's share kept for blocks not counted in n_b (Settings.idle_split)."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
@@ -78,6 +78,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity):
         values[UP_X], values[UP_Y], values[UP_Z] = (-float(x) / g for x in gravity)
     values[GRAVITY_REACH] = g * dt * dt
     values[BAUMGARTE_RATE] = baumgarte_rate(settings, dt)
+    values[IDLE_SHARE] = settings.idle_split
     return RowParams(values)
 
 

@@ -48,9 +48,9 @@ import taichi as ti
 from ..awake import body_id, body_total
 from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
-from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, INV_H, LOAD_BLEND, RESTITUTION_THRESHOLD, STEP_DT,
-                             support_push)
-from .rows import ROLLING, point_impulse, rolling_impulse, solve_point
+from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, RESTITUTION_THRESHOLD,
+                             STEP_DT, support_push)
+from .rows import ROLLING, block_weights, point_impulse, rolling_impulse, solve_point
 
 vec3 = ti.math.vec3
 
@@ -75,8 +75,9 @@ class BlockScratch:
         self.slot_dw = ti.Vector.field(3, ti.f32, 2 * bc)
         self.active_count = ti.field(ti.i32, nb)  # blocks of the body that can act this step (n_b)
         self.fresh_count = ti.field(ti.i32, nb)  # of those, impacts (new and fast)
-        self.scale = ti.field(ti.f32, nb)
+        self.scale = ti.field(ti.f32, nb)  # of the blocks counted in n_b
         self.weight = ti.field(ti.f32, nb)
+        self.scale_idle = ti.field(ti.f32, nb)  # of the body's other blocks (idle_split)
         self.scanner = Scanner(nb + 1)
 
 
@@ -152,6 +153,11 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
         fresh = 0
         if ti.static(mode == MODE_SPLIT):
             act, fresh = _block_can_act(c, rows, k, kind)
+        else:
+            act = 1  # one global factor: every block counted
+        start, count, _, _ = block_range(c, k, kind)
+        for q in range(start, start + count):
+            rows.counted[q] = act
         if bodies.inv_mass[a] > 0.0:
             ti.atomic_add(s.adj_count[a], 1)
             ti.atomic_add(s.active_count[a], act)
@@ -178,11 +184,18 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
             # (a debris box landing at 9.6 m/s left at 20.8 m/s, docs/method-notes.md)
             relax = omega if s.fresh_count[i] == 0 else 1.0
             split = ti.max(ti.cast(ti.max(s.active_count[i], 1), ti.f32) / relax, 1.0)
+            idle = s.adj_count[i] - s.active_count[i]
+            s.scale_idle[i] = split
+            if idle > 0:  # uncounted blocks that still act must not break B >= A (idle_split)
+                share = rows.params[IDLE_SHARE]
+                split = split / (1.0 - share)
+                s.scale_idle[i] = ti.cast(idle, ti.f32) / share
             s.scale[i] = split
             s.weight[i] = 1.0 / split
         else:
             s.scale[i] = 1.0 / omega
             s.weight[i] = omega
+            s.scale_idle[i] = 1.0 / omega
 
 
 @ti.kernel
@@ -329,10 +342,11 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
         # from the precomputed rows instead of rebuilt through each body's inertia
         for q in range(start, start + count):
             va, wa, vb, wb = _apply_accumulated(rows, c, friction, q, va, wa, vb, wb)
-    dva = (va - va0) * s.weight[a]
-    dwa = (wa - wa0) * s.weight[a]
-    dvb = (vb - vb0) * s.weight[b]
-    dwb = (wb - wb0) * s.weight[b]
+    wa_, wb_ = block_weights(s, rows, start, a, b)
+    dva = (va - va0) * wa_
+    dwa = (wa - wa0) * wa_
+    dvb = (vb - vb0) * wb_
+    dwb = (wb - wb0) * wb_
     s.slot_dv[2 * k] = dva
     s.slot_dw[2 * k] = dwa
     s.slot_dv[2 * k + 1] = dvb

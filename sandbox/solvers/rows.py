@@ -67,6 +67,7 @@ class Rows:
         self.sep_now = ti.field(ti.f32, c)  # [m] separation at the last position update (normal_target)
         self.params = ti.field(ti.f32, PARAM_COUNT)  # this step's constants (contact_spring.row_params)
         self.lam = ti.Vector.field(3, ti.f32, c)  # accumulated impulses (n, t1, t2) [N s]
+        self.counted = ti.field(ti.i32, c)  # the point's block counts in its bodies' n_b (mass_splitting.py)
         # per step, with the schedule's mass scale s (prepare_response): rows e = n, t1, t2
         self.ang_a = ti.Matrix.field(3, 3, ti.f32, c)  # r_a x e
         self.ang_b = ti.Matrix.field(3, 3, ti.f32, c)
@@ -196,6 +197,26 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
 
 
 @ti.func
+def block_scales(s: ti.template(), rows: ti.template(), q: ti.i32, a: ti.i32, b: ti.i32):
+    """The inverse-mass scales of bodies a and b inside the block of point q (``s``: the schedule's
+    mass_splitting.BlockScratch): the body's split for a block counted in n_b, its idle split for
+    one that is not (Settings.idle_split)."""
+    sa, sb = s.scale[a], s.scale[b]
+    if rows.counted[q] == 0:
+        sa, sb = s.scale_idle[a], s.scale_idle[b]
+    return sa, sb
+
+
+@ti.func
+def block_weights(s: ti.template(), rows: ti.template(), q: ti.i32, a: ti.i32, b: ti.i32):
+    """1 / block_scales: how much of a block's change of its copies reaches each body."""
+    wa, wb = s.weight[a], s.weight[b]
+    if rows.counted[q] == 0:
+        wa, wb = 1.0 / s.scale_idle[a], 1.0 / s.scale_idle[b]
+    return wa, wb
+
+
+@ti.func
 def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
                 split: ti.template(), friction: ti.template(), q: ti.i32):
     """What a sweep needs of point q, once per step: the angular Jacobians r x e of both
@@ -217,8 +238,7 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     sa = 1.0
     sb = 1.0
     if ti.static(split):
-        sa = scale[a]
-        sb = scale[b]
+        sa, sb = block_scales(scale, rows, q, a, b)
     ia = bodies.inv_inertia_world[a] * sa
     ib = bodies.inv_inertia_world[b] * sb
     ra = rows.ra[q]

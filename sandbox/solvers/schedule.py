@@ -79,7 +79,7 @@ class Schedule:
         """After the rows: body adjacency, scaled responses and colouring, as separate launches."""
         blk, kind, mode, omega, scaled = self.adjacency_args(buf, settings)
         mass_splitting.build_adjacency(blk, buf.contacts, buf.bodies, buf.rows, kind, mode, omega)
-        contact_rows.prepare_response(buf.rows, buf.contacts, buf.bodies, blk.scale, scaled, friction)
+        contact_rows.prepare_response(buf.rows, buf.contacts, buf.bodies, blk, scaled, friction)
         self.color(buf, step)
 
     def color(self, buf, step: int) -> None:
