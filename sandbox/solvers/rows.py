@@ -46,6 +46,7 @@ import taichi as ti
 
 from ..math3d import plane_basis, quat_rotate, quat_rotate_inv
 from .contact_spring import INV_H, MAX_PUSH, PARAM_COUNT, RESTITUTION_THRESHOLD, RowParams, row_spring, supported_load
+from .split_scales import block_scales
 
 vec3 = ti.math.vec3
 
@@ -197,26 +198,6 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
 
 
 @ti.func
-def block_scales(s: ti.template(), rows: ti.template(), q: ti.i32, a: ti.i32, b: ti.i32):
-    """The inverse-mass scales of bodies a and b inside the block of point q (``s``: the schedule's
-    mass_splitting.BlockScratch): the body's split for a block counted in n_b, its idle split for
-    one that is not (Settings.idle_split)."""
-    sa, sb = s.scale[a], s.scale[b]
-    if rows.counted[q] == 0:
-        sa, sb = s.scale_idle[a], s.scale_idle[b]
-    return sa, sb
-
-
-@ti.func
-def block_weights(s: ti.template(), rows: ti.template(), q: ti.i32, a: ti.i32, b: ti.i32):
-    """1 / block_scales: how much of a block's change of its copies reaches each body."""
-    wa, wb = s.weight[a], s.weight[b]
-    if rows.counted[q] == 0:
-        wa, wb = 1.0 / s.scale_idle[a], 1.0 / s.scale_idle[b]
-    return wa, wb
-
-
-@ti.func
 def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), scale: ti.template(),
                 split: ti.template(), friction: ti.template(), q: ti.i32):
     """What a sweep needs of point q, once per step: the angular Jacobians r x e of both
@@ -224,7 +205,7 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     row's spring (contact_spring.py: it needs the split response), and the inverse
     effective masses of the three rows (the normal one soft and rigid).
 
-    ``s`` is the schedule's scale of the body's inverse mass and inertia (``scale[body]``
+    ``s`` is the schedule's scale of the body's inverse mass and inertia (split_scales.block_scales
     when ``split``, else 1: PGS), used in the effective mass *and* when propagating the
     impulse into the block's velocity copies, which keeps a mass-split block consistent
     (method.md 1.5). The compliance gamma comes from the *unsplit* response (module
