@@ -25,7 +25,7 @@ class CompiledEffects:
     gyroscopic: bool  # the rotation update solves the implicit gyroscopic term (integrate.rotate_free)
     sleeping: bool  # resting islands sleep and the loops visit the awake bodies only (sleep.py)
     damping: bool = False  # the position update damps velocities (integrate.advance_pose)
-    rolling_friction: bool = False  # torsional and rolling rows are solved (rows.solve_rolling)
+    rolling_friction: bool = False  # torsional and rolling rows are solved (rolling.solve_rolling)
     speculative: bool = True  # AABBs and pair margins grow by the distance a shape can move (broadphase.py)
 
     def as_dict(self) -> dict[str, bool]:

@@ -115,17 +115,20 @@ class StepInspection:
             raise SandboxError("the inspected step is not paused after a sweep (advance() first; it ends "
                                "after the last)")
 
+    @property
+    def mode(self) -> int:
+        """The problem the last sweep solved: rows.BIASED or rows.RELAX (RELAX when not paused)."""
+        from .solvers.rows import BIASED, RELAX
+
+        return BIASED if self.sweep is not None and self.sweep.phase == "biased" else RELAX
+
     def _compute_residuals(self) -> None:
-        from .solvers.rows import BIASED, RELAX, compute_residuals
+        from .solvers.rows import compute_residuals
 
         b = self.world.buf
-        mode = BIASED if self.sweep.phase == "biased" else RELAX
-        compute_residuals(b.rows, b.contacts, b.bodies, mode)
+        compute_residuals(b.rows, b.contacts, b.bodies, self.mode)
 
     def _residual_rms(self) -> float:
-        b = self.world.buf
-        n = int(b.contacts.count[None])
-        if n == 0:
-            return 0.0
-        self._compute_residuals()
-        return float(np.sqrt(np.mean(b.rows.residual.to_numpy()[:n]) / 3.0))
+        from .step import residual_rms
+
+        return residual_rms(self.world.buf, self.mode)

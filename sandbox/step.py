@@ -231,7 +231,7 @@ class Stepper:
                 for j in range(sweeps):
                     schedule.sweep(b, awake, BIASED, loop.friction)
                     if record_residuals:
-                        self.residual_history.append(biased_residual_rms(b))
+                        self.residual_history.append(residual_rms(b, BIASED))
                     if pause:
                         yield Sweep(i, k, "biased", j, sweeps, False)
             with p.stage("integrate_positions"):
@@ -273,12 +273,12 @@ class Stepper:
         raise SimulationError(f"step {step_count}: {problem}; the world was restored to its last good state")
 
 
-def biased_residual_rms(b) -> float:
-    """RMS residual [m/s] of the biased problem the sweeps are solving right now."""
+def residual_rms(b, mode: int) -> float:
+    """RMS residual [m/s] of the BIASED or RELAX problem (solvers/rows.py) right now."""
     from .metrics import RES_SQ_SUM, compute_metrics
-    from .solvers.rows import BIASED, compute_residuals
+    from .solvers.rows import compute_residuals
 
-    compute_residuals(b.rows, b.contacts, b.bodies, BIASED)
+    compute_residuals(b.rows, b.contacts, b.bodies, mode)
     compute_metrics(b.metrics, b.bodies, b.contacts, b.rows)
     n = int(b.contacts.count[None])
     return float(np.sqrt(b.metrics.values[RES_SQ_SUM] / (3 * n))) if n else 0.0

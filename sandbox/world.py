@@ -336,12 +336,11 @@ class World:
         step (metrics.py); awake and sleeping bodies and islands (islands.py, sleep.py);
         ``colors`` too when the solver colours its manifolds."""
         from .metrics import read_metrics, read_sleep_metrics
-        from .solvers.rows import BIASED, RELAX, compute_residuals
+        from .solvers.rows import RELAX, compute_residuals
 
         b = self.buf
-        mode = RELAX  # the step ends with the rigid relax ...
-        if self._inspection is not None and self._inspection.sweep is not None and self._inspection.sweep.phase == "biased":
-            mode = BIASED  # ... but a step paused after a biased sweep is solving the biased problem
+        # a step ends with the rigid relax; a step paused inside is solving its last sweep's problem
+        mode = RELAX if self._inspection is None else self._inspection.mode
         compute_residuals(b.rows, b.contacts, b.bodies, mode)
         out = {"step": self.step_count, "time": self.step_count * self.dt, **read_metrics(b),
                **read_sleep_metrics(b, self.sleeping, self._edits.dynamic_count)}

@@ -19,21 +19,13 @@ import numpy as np
 from sandbox import EFFECTS, FORMULATIONS, SOLVERS, EventSpec, SandboxError, Scene, resolve_scene, shipped_scenes
 
 from .debris import DEBRIS_MIXES, MAX_DEBRIS, debris_bodies
+from .readouts import LOG_FLOOR, decades, inspection_text, stats_table
 from .render import COLOR_MODES
 
 EFFECT_HINTS = {"sleeping": "Resting islands stop being simulated until something touches them (drawn dimmed); "
                             "untick it to watch a solver's jitter"}
 TIME_STEPS = {"1/30 s": 1 / 30, "1/60 s": 1 / 60, "1/120 s": 1 / 120, "1/240 s": 1 / 240}
 MAX_ITERATIONS = 100
-LOG_FLOOR = -12.0
-"""Decades below which the plots show nothing (a resting pile's energy reaches ~1e-10 J)."""
-
-
-def _decades(values: np.ndarray) -> np.ndarray:
-    """log10 of a plotted series, floored at LOG_FLOOR (zero energy, a step without contacts)."""
-    return np.log10(np.maximum(values, 10.0 ** LOG_FLOOR))
-
-
 def _user_action(callback):
     """Run a widget callback only for changes a user made: ``refresh`` writing the world's
     value into a widget fires the callback in the refreshing thread, and that must not echo
@@ -370,35 +362,14 @@ class ControlPanel:
             rec += f" ‖ right: {snap.twin.solver}, {len(snap.twin.bodies)} bodies"
         self._set(self.status, "content", f"**{self.sim.scene_path.stem}** · {len(snap.bodies)} bodies · "
                                           f"{snap.solver} × {snap.iterations}{paper} · {state}{rec}")
-        m, t = snap.metrics, snap.timing_ms
-        stages = " · ".join(f"{k} {t.get(k, 0.0):.2f}" for k in ("collide", "solve", "integrate"))
-        lines = [
-            "| | |\n|---|---|",
-            f"| bodies | **{len(snap.bodies)}** |",
-            f"| contacts | {m['contacts']} ({m['manifolds']} manifolds) |",
-            f"| awake / asleep | {m['awake_bodies']} / {m['sleeping_bodies']} bodies, {m['islands']} islands |",
-        ]
-        if "colors" in m:
-            lines.append(f"| colours | {m['colors']} |")
-        lines += [
-            f"| step | {snap.step} (t = {snap.step * snap.dt:.2f} s) |",
-            f"| sim | {snap.steps_per_second:.1f} steps/s ({snap.realtime_factor:.2f}× real time) |",
-            f"| render | {render_fps:.1f} FPS |",
-            f"| ms/step | {t.get('total', 0.0):.2f} (mean of the unprofiled steps) |",
-            f"| sampled step [ms] | {stages} (one step per {self.sim.STATS_WINDOW_S:g} s, profiled: a launch "
-            "per stage, slower than the fused step) |",
-            f"| kinetic energy | {m['kinetic_energy']:.3e} J |",
-            f"| max penetration | {1e3 * m['max_penetration']:.2f} mm |",
-            f"| residual RMS | {m['residual_rms']:.2e} m/s |",
-        ]
-        self._set(self.stats, "content", "\n".join(lines))
+        self._set(self.stats, "content", stats_table(snap, render_fps, self.sim.STATS_WINDOW_S))
         h = snap.history
         if len(h["step"]) and self._plotted != (snap.world_id, snap.step):  # nothing new while paused
             self._plotted = (snap.world_id, snap.step)
-            self.ke_plot.data = (h["step"], _decades(h["kinetic_energy"]))
-            self.res_plot.data = (h["step"], _decades(h["residual_rms"]))
+            self.ke_plot.data = (h["step"], decades(h["kinetic_energy"]))
+            self.res_plot.data = (h["step"], decades(h["residual_rms"]))
             if snap.twin is not None and len(snap.twin.history) == len(h["step"]):
-                self.compare_plot.data = (h["step"], _decades(h["kinetic_energy"]), _decades(snap.twin.history))
+                self.compare_plot.data = (h["step"], decades(h["kinetic_energy"]), decades(snap.twin.history))
         selected = self.selected  # read once: GUI callbacks may change it meanwhile
         if selected is not None and selected >= len(snap.bodies):
             selected = self.selected = None
@@ -424,26 +395,9 @@ class ControlPanel:
         if self._inspected == view["label"] + str(view["body"]):
             return
         self._inspected = view["label"] + str(view["body"])
-        c = view["contacts"]
-        lines = [f"**{view['label']}**", "",
-                 f"{len(c['impulse'])} contact points; largest normal impulse {c['impulse'].max(initial=0.0):.3g} N s; "
-                 f"residual RMS {view['residuals'][-1]:.3g} m/s"]
-        sub = view["sub_bodies"]
-        if view["body"] is None:
-            lines.append("\nSelect a body to see its sub-bodies.")
-        elif sub is None:
-            lines.append(f"\nBody {view['body']}: no sub-bodies (a static body, or a PGS solver: its rows act on "
-                         "the body itself, one after another).")
-        else:
-            lines += ["", f"Sub-bodies of body {view['body']} (split {sub['split']:.3g}), velocity [m/s]:", "",
-                      "| block | v_x | v_y | v_z |", "|---|--:|--:|--:|"]
-            for block, v in zip(sub["blocks"], sub["linear"]):
-                lines.append(f"| {block} | {v[0]:.4g} | {v[1]:.4g} | {v[2]:.4g} |")
-            merged = sub["merged"][0]
-            lines.append(f"| **merged** | {merged[0]:.4g} | {merged[1]:.4g} | {merged[2]:.4g} |")
-        self._set(self.inspect_text, "content", "\n".join(lines))
+        self._set(self.inspect_text, "content", inspection_text(view))
         residuals = view["residuals"]
-        self.sweep_plot.data = (np.arange(1, len(residuals) + 1, dtype=np.float64), _decades(residuals))
+        self.sweep_plot.data = (np.arange(1, len(residuals) + 1, dtype=np.float64), decades(residuals))
 
     def _sync(self, handle, value) -> None:
         """Show the world's value without firing the widget's callback again."""

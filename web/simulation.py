@@ -25,43 +25,11 @@ import numpy as np
 from sandbox import EventSpec, Recorder, SandboxError, Scene, SimulationError, init_backend
 
 from .debris import DEBRIS_KINDS, MAX_DEBRIS as DEBRIS_RESERVE
+from .snapshot import COMPARE_GAP, Snapshot, inspection_view, twin_view
 
 HISTORY = 600  # published frames kept for the live plots
 PUBLISH_HZ = 30.0  # snapshots per second while playing: the renderer draws at most this many
 BODY_LIST_KINDS = ("drop", "remove", "fracture")
-
-
-@dataclass(frozen=True)
-class Snapshot:
-    """What the render loop needs from one step; never mutated after publication."""
-
-    world_id: int  # bumps when the world is rebuilt (scene change, reset)
-    generation: int  # bumps when the body list changes (drop, remove, fracture, reset)
-    step: int
-    positions: np.ndarray  # (N, 3) float32
-    orientations: np.ndarray  # (N, 4) float32, w x y z
-    speeds: np.ndarray  # (N,) float32 [m/s]
-    asleep: np.ndarray  # (N,) bool: bodies of sleeping islands (drawn dimmed)
-    bodies: tuple  # BodySpecs of this generation (shared, read-only)
-    scene: Scene
-    metrics: dict
-    history: dict  # "step", "kinetic_energy", "residual_rms": (F,) arrays of the last HISTORY frames
-    timing_ms: dict  # ms by stage of one sampled step per stats window; "total": mean ms/step of the others
-    steps_per_second: float
-    realtime_factor: float
-    solver: str
-    iterations: int
-    formulation: str  # "soft-step" | "paper" (sandbox/formulation.py)
-    dt: float
-    substeps: int
-    effects: tuple
-    gravity_on: bool
-    playing: bool
-    recording: bool
-    contacts: dict | None = None  # "point", "normal" when contact drawing is on
-    inspection: dict | None = None  # a step paused after a sweep (Simulation.inspect): what it shows
-    twin: "Twin | None" = None  # the compare view's second world (Simulation.compare)
-    error: str | None = None  # the last SimulationError, until the world plays again
 
 
 @dataclass
@@ -182,11 +150,10 @@ class Simulation:
         """The compare view: a second world of the same scene with ``solver`` (None: off), started
         with the first from the scene's beginning, stepped with it and given the same edits (drops,
         removals, iterations, formulation, gravity, effects; not the first world's solver)."""
-        if solver is None:
-            self._set_twin(None)
-            return
-        self.load(self.world.scene)  # both from the start: the same inputs from here on
-        self._set_twin(solver)
+        self._set_twin(None)  # (so the reload below does not rebuild the old one)
+        if solver is not None:
+            self.load(self.world.scene)  # both from the start: the same inputs from here on
+            self._set_twin(solver)
 
     def _set_twin(self, solver: str | None) -> None:
         from sandbox import World
@@ -390,33 +357,6 @@ class Simulation:
                 s.timing_ms["total"] = 1e3 * s.step_seconds / s.timed_steps
             s.window_start, s.steps, s.sim_seconds, s.step_seconds, s.timed_steps = now, 0, 0.0, 0.0, 0
 
-    def _inspection_view(self) -> dict | None:
-        """What the panel and the view show of a paused step (None when no step is paused)."""
-        inspection = self.inspection
-        if inspection is None or inspection.sweep is None:
-            return None
-        view = {"label": f"step {self.world.step_count + 1}, " + _describe(inspection.sweep),
-                "residuals": np.asarray(inspection.residuals, dtype=np.float64),
-                "contacts": inspection.contacts(), "body": self.inspect_body, "sub_bodies": None}
-        if self.inspect_body is not None:
-            try:
-                view["sub_bodies"] = inspection.sub_bodies(self.inspect_body)
-            except SandboxError:  # a static body has no sub-bodies
-                pass
-        return view
-
-    def _twin_view(self) -> Twin | None:
-        t = self.twin
-        if t is None:
-            return None
-        st = t.state(("position", "orientation", "linear_velocity"))
-        return Twin(world_id=self._world_id, generation=self._twin_generation,
-                    positions=st["position"].astype(np.float32), orientations=st["orientation"].astype(np.float32),
-                    speeds=np.linalg.norm(st["linear_velocity"], axis=1).astype(np.float32), asleep=t.asleep(),
-                    bodies=t.body_specs, scene=t.scene, solver=t.solver,
-                    history=np.asarray(self._history["twin_kinetic_energy"], dtype=np.float64),
-                    offset=self._twin_offset)
-
     def _publish(self, new_frame: bool = False) -> None:
         self._last_publish = time.perf_counter()
         w = self.world
@@ -458,39 +398,13 @@ class Simulation:
             playing=self.playing,
             recording=self.recorder is not None,
             contacts=contacts,
-            inspection=self._inspection_view(),
-            twin=self._twin_view(),
+            inspection=inspection_view(self.inspection, self.world, self.inspect_body),
+            twin=twin_view(self.twin, self._world_id, self._twin_generation, self._history["twin_kinetic_energy"],
+                           self._twin_offset),
             error=self.last_error,
         )
         with self._latest_lock:
             self._latest = snap
-
-
-@dataclass(frozen=True)
-class Twin:
-    """The compare view's second world, as the view draws it (WorldView reads these names)."""
-
-    world_id: int
-    generation: int
-    positions: np.ndarray
-    orientations: np.ndarray
-    speeds: np.ndarray
-    asleep: np.ndarray
-    bodies: tuple
-    scene: Scene
-    solver: str
-    history: np.ndarray  # its kinetic energy at the steps of Snapshot.history["step"]
-    offset: float  # [m] along +x from the first world
-    contacts: None = None
-    inspection: None = None
-
-
-COMPARE_GAP = 4.0  # [m] between the two worlds of the compare view
-
-
-def _describe(sweep) -> str:
-    text = (f"substep {sweep.substep + 1}/{sweep.substeps}: {sweep.phase} sweep {sweep.index + 1}/{sweep.count}")
-    return text + (" (it also applied the next substep's warm start)" if sweep.carries_warm_start else "")
 
 
 def _in_background(callback, value) -> None:

@@ -42,6 +42,8 @@ import math
 
 import taichi as ti
 
+from ..formulation import baumgarte_rate
+
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
  UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE) = range(15)
 PARAM_COUNT = 16
@@ -61,7 +63,6 @@ RowParams = ti.types.vector(PARAM_COUNT, ti.f32)
 def row_params(settings, h: float, sweeps: int, dt: float, gravity):
     """This step's ``RowParams`` from ``settings`` for substeps of ``h`` [s] with ``sweeps``
     biased and as many relax sweeps each, in steps of ``dt`` [s], under ``gravity`` [m/s^2]."""
-    from ..formulation import baumgarte_rate
 
     values = [0.0] * PARAM_COUNT
     values[INV_H] = 1.0 / h

@@ -50,7 +50,8 @@ from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, RESTITUTION_THRESHOLD,
                              STEP_DT, support_push)
-from .rows import ROLLING, point_impulse, rolling_impulse, solve_point
+from .rolling import rolling_impulse
+from .rows import ROLLING, point_impulse, solve_point
 from .split_scales import block_weights
 
 vec3 = ti.math.vec3

@@ -46,6 +46,7 @@ import taichi as ti
 
 from ..math3d import plane_basis, quat_rotate, quat_rotate_inv
 from .contact_spring import INV_H, MAX_PUSH, PARAM_COUNT, RESTITUTION_THRESHOLD, RowParams, row_spring, supported_load
+from .rolling import respond_rolling, solve_rolling
 from .split_scales import block_scales
 
 vec3 = ti.math.vec3
@@ -95,7 +96,7 @@ BIASED, RELAX, RESTITUTION = 0, 1, 2
 
 SLIDING, ROLLING = 1, 2
 """Bits of a sweep's ``friction`` switch (effects.py compiles each in only when some contact can
-use it): the sliding-friction rows, and the torsional and rolling rows (``solve_rolling``)."""
+use it): the sliding-friction rows, and the torsional and rolling rows (``rolling.solve_rolling``)."""
 
 
 def contact_switch(effects) -> int:
@@ -170,7 +171,8 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
 
 
 @ti.func
-def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32, mode: ti.template()):
+def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32, mode: ti.template(),
+                  keep: ti.template() = True):
     """(target velocity b, compliance gamma) of point q's normal row: the row asks for
     n . v_rel + b + gamma lambda >= 0. Gaps are speculative targets s / h; a penetration
     gets the spring's bias in BIASED mode; BIASED rows are soft (gamma) either way, RELAX
@@ -179,7 +181,9 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
     The separation changes only when positions do, i.e. between a substep's biased and
     relax sweeps: the relax sweep (the first to run after a position update) computes it
     and keeps it in ``sep_now`` for the next substep's biased sweep (prepare_rows seeds it
-    for the first), so the two quaternion rotations are paid once per substep."""
+    for the first), so the two quaternion rotations are paid once per substep. ``keep`` False
+    (a residual read, compute_residuals) computes it without keeping it: reading the solver's
+    state never changes what its next sweep sees."""
     target = 0.0
     gamma = 0.0
     s = 0.0
@@ -187,7 +191,8 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
         s = rows.sep_now[q]
     else:
         s = current_separation(rows, c, bodies, q)
-        rows.sep_now[q] = s
+        if ti.static(keep):
+            rows.sep_now[q] = s
     if s > 0.0:
         target = s * rows.params[INV_H]
     elif ti.static(mode == BIASED):
@@ -239,17 +244,8 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     rows.gamma[q] = gamma
     rows.inv_k[q] = 1.0 / k
     rows.inv_k_soft[q] = 1.0 / (k[0] + gamma)
-    if ti.static(friction & ROLLING):  # the angular rows' responses (solve_rolling)
-        rows.roll_resp_a[q] = ia
-        rows.roll_resp_b[q] = ib
-        both = ia + ib
-        k_roll = vec3(c.normal[q].dot(both @ c.normal[q]), rows.t1[q].dot(both @ rows.t1[q]),
-                      rows.t2[q].dot(both @ rows.t2[q]))
-        inv_k_roll = vec3(0.0)  # 0: neither body can turn (both static or infinitely inert)
-        for e in ti.static(range(3)):
-            if k_roll[e] > 0.0:
-                inv_k_roll[e] = 1.0 / k_roll[e]
-        rows.inv_k_roll[q] = inv_k_roll
+    if ti.static(friction & ROLLING):  # the angular rows' responses (rolling.solve_rolling)
+        respond_rolling(rows, c, q, ia, ib)
 
 
 @ti.func
@@ -281,7 +277,7 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
     word (Box2D v3). ``mode``: BIASED (soft, with position bias), RELAX (rigid, no
     bias) or RESTITUTION (normal row only, towards -e times the approach speed).
     ``friction`` (bits SLIDING, ROLLING) compiles in the sliding-friction rows and the
-    torsional and rolling rows (``solve_rolling``); 0 (a scene without the friction effect)
+    torsional and rolling rows (``rolling.solve_rolling``); 0 (a scene without the friction effect)
     compiles every friction row away. The angular rows come after the normal row, as in
     Box2D v3, so that their bound is this sweep's normal impulse: bounded by the one before
     it, the last (relax) sweep of a substep capped them at the biased sweep's share of the
@@ -356,51 +352,6 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
 
 
 @ti.func
-def rolling_impulse(rows: ti.template(), c: ti.template(), q: ti.i32) -> vec3:
-    """Point q's accumulated torsional and rolling impulses as one angular impulse on body b."""
-    lr = rows.lam_roll[q]
-    return c.normal[q] * lr[0] + rows.t1[q] * lr[1] + rows.t2[q] * lr[2]
-
-
-@ti.func
-def solve_rolling(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32, wa: vec3, wb: vec3,
-                  lam_n: ti.f32):
-    """Torsional friction (about the normal) then rolling friction (about the tangents) of point
-    q: angular rows on the relative angular velocity, each bounded by its lever arm times the
-    point's normal impulse (the larger of the two bodies' coefficients, Bullet's spinning and
-    rolling friction), the rolling pair projected onto a disk like sliding friction. Their
-    impulses are warm started within the step (mass_splitting._warm_delta) like the others."""
-    arm = ti.max(bodies.rolling[c.body_a[q]], bodies.rolling[c.body_b[q]]) * lam_n  # [N m s] (rolling, torsional)
-    ia = rows.roll_resp_a[q]
-    ib = rows.roll_resp_b[q]
-    inv_k = rows.inv_k_roll[q]
-    lr = rows.lam_roll[q]
-    n = c.normal[q]
-    t1 = rows.t1[q]
-    t2 = rows.t2[q]
-    if inv_k[0] > 0.0:
-        tn = ti.min(ti.max(lr[0] - (wb - wa).dot(n) * inv_k[0], -arm[1]), arm[1])
-        d = (tn - lr[0]) * n
-        wa -= ia @ d
-        wb += ib @ d
-        lr[0] = tn
-        dw = wb - wa
-        r1 = lr[1] - dw.dot(t1) * inv_k[1]
-        r2 = lr[2] - dw.dot(t2) * inv_k[2]
-        mag = ti.sqrt(r1 * r1 + r2 * r2)
-        if mag > arm[0]:
-            r1 *= arm[0] / mag
-            r2 *= arm[0] / mag
-        d = (r1 - lr[1]) * t1 + (r2 - lr[2]) * t2
-        wa -= ia @ d
-        wb += ib @ d
-        lr[1] = r1
-        lr[2] = r2
-        rows.lam_roll[q] = lr
-    return wa, wb
-
-
-@ti.func
 def add_step_impulse(rows: ti.template(), q: ti.i32):
     """After a substep: point q's impulses of that substep join the step's sum."""
     rows.lam_step[q] += rows.lam[q]
@@ -442,7 +393,7 @@ def compute_residuals(rows: ti.template(), c: ti.template(), bodies: ti.template
         dv = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
         k = rows.k_a[q] + rows.k_b[q]
         lam = rows.lam[q]
-        target, gamma = normal_target(rows, c, bodies, q, mode)
+        target, gamma = normal_target(rows, c, bodies, q, mode, False)
         w = dv.dot(c.normal[q]) + target + gamma * lam[0]
         rn = ti.min(w, (k[0] + gamma) * lam[0])
         # friction: distance of lambda_t from the projection of its gradient step onto the disk
