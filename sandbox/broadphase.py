@@ -219,7 +219,8 @@ def _fits_grid(lo: vec3, hi: vec3, cell: ti.f32) -> ti.i32:
 
 @ti.func
 def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
-                             dt: ti.f32, speculative: ti.template(), err: ti.template(), awake: ti.template()):
+                             dt: ti.f32, speculative: ti.template(), err: ti.template(), awake: ti.template(),
+                             dispatch: ti.template()):
     """``dt`` [s] is the step: each AABB also covers where its shape can get to during the step
     (|v| dt + |w| r dt), so fast bodies find their partners and get speculative contacts
     instead of tunnelling. Bounds too large for the grids raise ERR_BOUNDS (MAX_SPAN_CELLS).
@@ -227,6 +228,7 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
     world's awake shapes; sleep.py builds the grid of its sleeping shapes with this too)."""
     n = shape_total(shapes, awake)
     cell = bp.cell_size[None]
+    ti.loop_config(serialize=ti.static(dispatch.serial))
     for k in range(n):
         i = shape_id(shapes, awake, k)
         lo, hi = shape_world_aabb(shapes, bodies, i, margin + swept_distance(shapes, bodies, i, dt, speculative))
@@ -282,8 +284,9 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
 
 @ti.kernel
 def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
-                       dt: ti.f32, speculative: ti.template(), err: ti.template(), awake: ti.template()):
-    build_dynamic_grid_loops(bp, shapes, bodies, margin, dt, speculative, err, awake)
+                       dt: ti.f32, speculative: ti.template(), err: ti.template(), awake: ti.template(),
+                       dispatch: ti.template()):
+    build_dynamic_grid_loops(bp, shapes, bodies, margin, dt, speculative, err, awake, dispatch)
 
 
 @ti.func
@@ -410,7 +413,7 @@ def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i
 
 
 @ti.func
-def find_pairs_loops(bp: ti.template(), shapes: ti.template(), awake: ti.template()):
+def find_pairs_loops(bp: ti.template(), shapes: ti.template(), awake: ti.template(), dispatch: ti.template()):
     """Count pass (which keeps the first PAIRS_PER_SHAPE partners of each shape in its
     scratch row), scan, then copy; only a shape with more partners is enumerated again.
     ``awake``: the shapes of the grid (``build_dynamic_grid_loops``) enumerate the pairs."""
@@ -419,6 +422,7 @@ def find_pairs_loops(bp: ti.template(), shapes: ti.template(), awake: ti.templat
     # Taichi's CPU loop hands each thread one contiguous block of the range: visit the
     # shapes interleaved (t -> k), so every block holds low and high ids alike
     rows = (n + PAIR_SEARCH_STRIDE - 1) // PAIR_SEARCH_STRIDE
+    ti.loop_config(serialize=ti.static(dispatch.serial))
     for t in range(rows * PAIR_SEARCH_STRIDE):
         k = (t % PAIR_SEARCH_STRIDE) * rows + t // PAIR_SEARCH_STRIDE
         if k < n:
@@ -438,5 +442,5 @@ def find_pairs_loops(bp: ti.template(), shapes: ti.template(), awake: ti.templat
 
 
 @ti.kernel
-def find_pairs(bp: ti.template(), shapes: ti.template(), awake: ti.template()):
-    find_pairs_loops(bp, shapes, awake)
+def find_pairs(bp: ti.template(), shapes: ti.template(), awake: ti.template(), dispatch: ti.template()):
+    find_pairs_loops(bp, shapes, awake, dispatch)

@@ -138,7 +138,7 @@ def partner_material(shapes: ti.template(), partner: ti.i32):
 def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
                         pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
                         speculative: ti.template(), reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(),
-                        awake: ti.template()):
+                        awake: ti.template(), dispatch: ti.template()):
     """Narrowphase over every candidate pair, then pack the points and manifolds.
 
     The pair's margin is the speculative distance (capped at a quarter of the smaller
@@ -154,6 +154,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
     sleeping world a pair with points whose partner sleeps marks that island to wake."""
     n_pairs = ti.min(bp.pair_total[None], bp.pair_capacity)
     start_step(cache)
+    ti.loop_config(serialize=ti.static(dispatch.serial))
     for p in range(n_pairs):
         i = bp.pair_a[p]
         j = bp.pair_b[p]
@@ -190,6 +191,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
             c.raw_feature[s] = m.feature[k]
     exclusive_scan(c.scanner, c.raw_count, c.point_start, n_pairs, c.count)
     exclusive_scan(c.scanner, c.has_points, c.manifold_index, n_pairs, c.manifold_count)
+    ti.loop_config(serialize=ti.static(dispatch.serial))
     for p in range(n_pairs):
         cnt = c.raw_count[p]
         if cnt > 0:
@@ -238,6 +240,6 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
 def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
                   pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
                   speculative: ti.template(), reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(),
-                  awake: ti.template()):
+                  awake: ti.template(), dispatch: ti.template()):
     collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, speculative, reuse_d2, reuse_sin, kinds,
-                        awake)
+                        awake, dispatch)

@@ -32,6 +32,8 @@ import numpy as np
 
 from . import buffers, sleep
 from .awake import EVERY
+from .backend import active_arch
+from .dispatch import dispatch_for
 from .build import host_world, upload
 from .errors import CapacityError, SandboxError
 from .fracture import FractureError, check_arguments, fracture_body, piece_count
@@ -125,6 +127,12 @@ class Edits:
     def awake_set(self, sleeping: bool):
         """The ``awake`` argument of the step's kernels (awake.py)."""
         return self.buf.sleep if sleeping else EVERY
+
+    @property
+    def dispatch(self):
+        """The ``dispatch`` argument of the step's kernels (dispatch.py): from the arch and the
+        buffers' body capacity, so it changes only when the buffers grow (a recompile anyway)."""
+        return dispatch_for(active_arch(), self.buf.caps.bodies)
 
     def set_sleeping(self, on: bool) -> None:
         """Turn the sleeping effect on (everything starts awake) or off (every island wakes, with

@@ -87,11 +87,12 @@ def match_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), m
 
 @ti.func
 def store_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.template(), shapes: ti.template(),
-                         substeps: ti.i32, awake: ti.template()):
+                         substeps: ti.i32, awake: ti.template(), dispatch: ti.template()):
     """This step's impulses for the next step's warm start. ``awake`` (awake.py): the shapes
     whose contacts were found (a sleeping shape's impulses wait in sleep.py's store)."""
     n = ti.min(c.count[None], hist.capacity)
     hist.count[None] = n
+    ti.loop_config(serialize=ti.static(dispatch.serial))
     for q in range(n):
         hist.partner[q] = c.partner[q]
         hist.feature[q] = c.feature[q]
@@ -113,5 +114,5 @@ def store_contacts_loops(hist: ti.template(), c: ti.template(), rows: ti.templat
 
 @ti.kernel
 def store_contacts(hist: ti.template(), c: ti.template(), rows: ti.template(), shapes: ti.template(),
-                   substeps: ti.i32, awake: ti.template()):
-    store_contacts_loops(hist, c, rows, shapes, substeps, awake)
+                   substeps: ti.i32, awake: ti.template(), dispatch: ti.template()):
+    store_contacts_loops(hist, c, rows, shapes, substeps, awake, dispatch)

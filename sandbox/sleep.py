@@ -36,6 +36,7 @@ from .awake import ShapeList, body_id, body_total
 from .backend import serialize_light_loops
 from .bodies import save_body_state, update_body_inertia
 from .broadphase import SPECULATIVE_OFF, Broadphase, build_dynamic_grid_loops
+from .dispatch import PARALLEL
 from .islands import Islands, label_islands, label_rounds, start_labels
 from .narrowphase.manifold import MAX_POINTS
 from .prefix_sum import Scanner, exclusive_scan
@@ -134,7 +135,7 @@ def _refresh(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp
         if sl.flag[k]:
             sl.sleepers.shape_ids[sl.rank[k]] = shapes.dynamic_ids[k]
     sl.grid.cell_size[None] = bp.cell_size[None]
-    build_dynamic_grid_loops(sl.grid, shapes, bodies, margin, 0.0, SPECULATIVE_OFF, err, sl.sleepers)
+    build_dynamic_grid_loops(sl.grid, shapes, bodies, margin, 0.0, SPECULATIVE_OFF, err, sl.sleepers, PARALLEL)
     sl.status[GRID_ENTRIES] = sl.grid.entry_total[None]
     sl.status[SLEEPING_BODIES] = 0
     sl.status[SLEEPING_ISLANDS] = 0

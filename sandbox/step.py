@@ -136,7 +136,8 @@ class Stepper:
             if fused:
                 blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
                 step_kernels.prepare_step(b.rows, b.contacts, b.bodies, b.history, blk, params, s.match_distance,
-                                          s.warm_start / k, kind, mode, omega, scaled, contact_switch(c.effects))
+                                          s.warm_start / k, kind, mode, omega, scaled, contact_switch(c.effects),
+                                          self.edits.dispatch)
                 c.schedule.color(b, step_count)
             else:
                 prepare_rows(b.rows, b.contacts, b.bodies, params)
@@ -161,13 +162,13 @@ class Stepper:
                 c.schedule.restitution(b, awake, contact_switch(c.effects), s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
             if fused:
                 step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, b.blocks,
-                                         c.schedule.kind, k, awake, *rest_arguments(h, s))
+                                         c.schedule.kind, k, awake, *rest_arguments(h, s), self.edits.dispatch)
             else:
                 from .solvers.mass_splitting import update_support
 
                 check_velocities(b.bodies, b.errors, awake)
-                update_support(b.blocks, b.contacts, b.rows, b.bodies, awake, c.schedule.kind)
-                store_contacts(b.history, b.contacts, b.rows, b.shapes, k, awake)
+                update_support(b.blocks, b.contacts, b.rows, b.bodies, awake, c.schedule.kind, self.edits.dispatch)
+                store_contacts(b.history, b.contacts, b.rows, b.shapes, k, awake, self.edits.dispatch)
         self._check_errors(b, step_count)
         if c.effects.sleeping:
             after_step(b, h, s, labelled=fused)
@@ -186,7 +187,7 @@ class Stepper:
             if fused:
                 step_kernels.begin_and_collide(b.bodies, b.errors, b.bp, b.shapes, b.contacts, b.pool,
                                                b.manifold_cache, st.contact_margin, st.slop, h, speculation(st),
-                                               *st.manifold_reuse_bounds(), self.edits.kinds, awake)
+                                               *st.manifold_reuse_bounds(), self.edits.kinds, awake, self.edits.dispatch)
             else:
                 self._collide(h, awake)
             if self.edits.grow_if_needed():
@@ -203,11 +204,12 @@ class Stepper:
         b, p, st = self.edits.buf, self.profiler, self.edits.settings
         margin = st.contact_margin
         with p.stage("broadphase"):
-            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, h, speculation(st), b.errors, awake)
-            find_pairs(b.bp, b.shapes, awake)
+            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, h, speculation(st), b.errors, awake,
+                               self.edits.dispatch)
+            find_pairs(b.bp, b.shapes, awake, self.edits.dispatch)
         with p.stage("narrowphase"):
             collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, st.slop, h,
-                          speculation(st), *st.manifold_reuse_bounds(), self.edits.kinds, awake)
+                          speculation(st), *st.manifold_reuse_bounds(), self.edits.kinds, awake, self.edits.dispatch)
 
     def _iterate_by_stage(self, schedule: Schedule, loop: Loop, record_residuals: bool, pause: bool):
         """The iteration loop a launch per phase, each in its stage. With warm starting, gravity

@@ -26,33 +26,36 @@ from .solvers.rows import prepare_row, respond_row, set_row_params
 def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template(), shapes: ti.template(),
                       c: ti.template(), pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32,
                       h: ti.f32, speculative: ti.template(), reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(),
-                      awake: ti.template()):
+                      awake: ti.template(), dispatch: ti.template()):
     """Save the good state, clear the error flags, world inertias, broadphase, narrowphase
-    (``awake``: of every body, or of a sleeping world's awake ones; awake.py)."""
+    (``awake``: of every body, or of a sleeping world's awake ones; awake.py; ``dispatch``: how
+    the heavy loops run, dispatch.py)."""
     err.flags[None] = 0
     err.body[None] = BIG
     save_good_state_loops(bodies, awake)
     update_world_inertia_loops(bodies, awake)
-    build_dynamic_grid_loops(bp, shapes, bodies, margin, h, speculative, err, awake)
-    find_pairs_loops(bp, shapes, awake)
+    build_dynamic_grid_loops(bp, shapes, bodies, margin, h, speculative, err, awake, dispatch)
+    find_pairs_loops(bp, shapes, awake, dispatch)
     collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, speculative, reuse_d2, reuse_sin, kinds,
-                        awake)
+                        awake, dispatch)
 
 
 @ti.kernel
 def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), hist: ti.template(),
                  blk: ti.template(), params: RowParams, match_distance: ti.f32, warm_factor: ti.f32,
                  kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template(),
-                 friction: ti.template()):
+                 friction: ti.template(), dispatch: ti.template()):
     """Rows and warm-start matching in one loop over the points, the schedule's adjacency
     (its split counts read both), then the row responses and springs (which read the
     split scales): each stage reads only its own point's earlier results, so these are
     the bits of the separate launches, in one dispatch."""
     set_row_params(rows, params)
+    ti.loop_config(serialize=ti.static(dispatch.serial))
     for q in range(c.count[None]):
         prepare_row(rows, c, bodies, q)
         match_contact(hist, c, rows, match_distance, warm_factor, q)
     build_adjacency_loops(blk, c, bodies, rows, kind, mode, omega)
+    ti.loop_config(serialize=ti.static(dispatch.serial))
     for q in range(c.count[None]):
         respond_row(rows, c, bodies, blk, split, friction, q)
 
@@ -60,12 +63,12 @@ def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), h
 @ti.kernel
 def finish_step(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
                 shapes: ti.template(), err: ti.template(), blk: ti.template(), kind: ti.template(), substeps: ti.i32,
-                awake: ti.template(), h: ti.f32, lin: ti.f32, ang: ti.f32, rest_time: ti.f32):
+                awake: ti.template(), h: ti.f32, lin: ti.f32, ang: ti.f32, rest_time: ti.f32, dispatch: ti.template()):
     """Velocity check, the bodies' support loads and the contact store for the next step; in a
     sleeping world also the rest timers and islands (sleep.rest_and_label_loops, its scalars
     after ``awake``)."""
     check_velocities_loops(bodies, err, awake)
-    update_support_loops(blk, c, rows, bodies, awake, kind)
-    store_contacts_loops(hist, c, rows, shapes, substeps, awake)
+    update_support_loops(blk, c, rows, bodies, awake, kind, dispatch)
+    store_contacts_loops(hist, c, rows, shapes, substeps, awake, dispatch)
     if ti.static(awake.compact):
         rest_and_label_loops(awake, c, bodies, h, lin, ang, rest_time, True)

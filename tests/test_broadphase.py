@@ -13,6 +13,7 @@ import pytest
 from sandbox.bodies import Bodies
 from sandbox.awake import EVERY
 from sandbox.broadphase import Broadphase, build_dynamic_grid, build_static_grid, compute_all_aabbs, find_pairs
+from sandbox.dispatch import PARALLEL, SERIAL
 from sandbox.integrate import ErrorFlags
 from sandbox.scene.rotations import quat_to_matrix
 from sandbox.shapes import BOX, ShapeTable
@@ -123,9 +124,9 @@ class _Broadphase:
         n = SHAPES
         return self.bp.aabb_min.to_numpy()[:n].astype(np.float64), self.bp.aabb_max.to_numpy()[:n].astype(np.float64)
 
-    def pairs(self):
-        build_dynamic_grid(self.bp, self.shapes, self.bodies, MARGIN, DT, 0.0, self.errors, EVERY)
-        find_pairs(self.bp, self.shapes, EVERY)
+    def pairs(self, dispatch=PARALLEL):
+        build_dynamic_grid(self.bp, self.shapes, self.bodies, MARGIN, DT, 0.0, self.errors, EVERY, dispatch)
+        find_pairs(self.bp, self.shapes, EVERY, dispatch)
         total = int(self.bp.pair_total[None])
         a, b = self.bp.pair_a.to_numpy()[:total], self.bp.pair_b.to_numpy()[:total]
         return list(zip(a.tolist(), b.tolist()))
@@ -168,6 +169,10 @@ def test_pairs_come_grouped_by_dynamic_shape_in_a_fixed_order(world):
     assert slots == sorted(slots)  # each shape's pairs are contiguous, shapes in dynamic order
     for _ in range(3):
         assert world.pairs() == first  # the grid's fills run in thread order; the result does not
+
+
+def test_pairs_are_the_same_whether_the_heavy_loops_run_serially_or_in_parallel(world):
+    assert world.pairs(SERIAL) == world.pairs(PARALLEL)  # dispatch.py: the same list, in the same order
 
 
 def test_static_grid_lists_each_static_shape_in_every_cell_it_covers(world):

@@ -11,6 +11,7 @@ import pytest
 
 from sandbox.contacts import Contacts
 from sandbox.awake import EVERY
+from sandbox.dispatch import PARALLEL
 from sandbox.persistence import ContactHistory, clear_history, match_contacts, store_contacts
 from sandbox.shapes import ShapeTable
 from sandbox.solvers.rows import Rows
@@ -91,7 +92,7 @@ def matched():
     buf = _Buffers()
     clear_history(buf.hist)
     buf.write_points(OLD, OLD_BASIS, impulses=[p[4] for p in OLD])
-    store_contacts(buf.hist, buf.c, buf.rows, buf.shapes, SUBSTEPS, EVERY)
+    store_contacts(buf.hist, buf.c, buf.rows, buf.shapes, SUBSTEPS, EVERY, PARALLEL)
     buf.write_points(NEW, _rotated_basis(ANGLE))
     match_contacts(buf.hist, buf.c, buf.rows, MATCH_DISTANCE, 1.0 / SUBSTEPS)
     return buf, buf.rows.lam.to_numpy()[: len(NEW)]

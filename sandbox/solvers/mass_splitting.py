@@ -208,12 +208,13 @@ def build_adjacency(s: ti.template(), c: ti.template(), bodies: ti.template(), r
 
 @ti.func
 def update_support_loops(s: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                         awake: ti.template(), kind: ti.template()):
+                         awake: ti.template(), kind: ti.template(), dispatch: ti.template()):
     """After a step: each dynamic body's support force [N] (the upward part of the normal
     impulses of the contacts that hold it up, over the last substep), averaged over
     ``contact_load_time``, and its support point count: the load its contacts' springs
     stiffen for next step (contact_spring.supported_load). Every schedule builds the
     adjacency this walks, so the sum runs in a fixed order."""
+    ti.loop_config(serialize=ti.static(dispatch.serial))
     for k in range(body_total(bodies, awake)):
         i = body_id(awake, k)
         if bodies.inv_mass[i] > 0.0:
@@ -234,8 +235,8 @@ def update_support_loops(s: ti.template(), c: ti.template(), rows: ti.template()
 
 @ti.kernel
 def update_support(s: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                   awake: ti.template(), kind: ti.template()):
-    update_support_loops(s, c, rows, bodies, awake, kind)
+                   awake: ti.template(), kind: ti.template(), dispatch: ti.template()):
+    update_support_loops(s, c, rows, bodies, awake, kind, dispatch)
 
 
 @ti.func
