@@ -11,8 +11,15 @@ pybullet is set up the way the team's anchors (RESULTS.md) were: boxes as maxima
 rigid bodies with the scene's masses and half extents, static planes, friction sqrt(0.5) per
 body (Bullet multiplies the two coefficients, so every pair gets 0.5), no damping, no sleeping,
 ``numSolverIterations`` = iterations. Only box-and-plane scenes are translated.
-``benchmarks/peer_pybullet.py`` drives ``pybullet_world`` / ``pybullet_ke`` directly. Needs the
-``peers`` extra.
+Rapier (``rapier3d``, Rust, f32) runs our very scheme: ``num_solver_iterations`` = iterations
+substeps of dt / iterations, each with one biased and one relax sweep, soft contacts (30 Hz,
+damping ratio 10, twice as stiff against fixed bodies). It is set up as in the team's anchors
+(apis.md section 6): cuboids with the scene's masses (solid-box inertia), half-spaces on fixed
+bodies, friction 0.5 and restitution 0 combined by AVERAGE, no damping, no sleeping, no CCD,
+and a stated number of worker threads (``rapier-t1``, ``rapier-t2``). Its contacts' stored
+depths are stale under contact recycling, so ``metrics`` measures them again from the two
+body-local points and the poses. ``benchmarks/peer_speed.py`` times every peer against our
+solvers, interleaved round by round. Needs the ``peers`` extra.
 """
 
 from __future__ import annotations
@@ -158,8 +165,74 @@ class PyBulletWorld:
         self.pb.disconnect(physicsClientId=self.cid)
 
 
+# ---------------------------------------------------------------------------------------------- Rapier
+class RapierWorld:
+    """A scene in Rapier with ``threads`` worker threads (module docstring), with our metrics' definitions."""
+
+    def __init__(self, scene: Scene, iterations: int, threads: int):
+        import rapier3d as r
+
+        translatable, why = translatable_to_pybullet(scene)
+        if not translatable:
+            raise SandboxError(f"only box-and-plane scenes are translated to Rapier: this one {why}")
+        self.world = w = r.PhysicsWorld(gravity=tuple(float(g) for g in scene.world.gravity))
+        w.set_num_threads(int(threads))
+        w.integration_parameters.dt = float(scene.world.dt)
+        w.integration_parameters.num_solver_iterations = int(iterations)
+        average = r.CoefficientCombineRule.AVERAGE
+        for plane in scene.planes:
+            w.add_body(r.RigidBody.fixed().translation(tuple(float(x) for x in np.asarray(plane.normal) * plane.offset)),
+                       colliders=[r.Collider.halfspace(tuple(float(x) for x in plane.normal)).friction(0.5)
+                                  .restitution(0.0).friction_combine_rule(average)])
+        self.handles = []
+        for body in scene.bodies:
+            hx, hy, hz = (float(x) for x in body.shapes[0].half_extents)
+            qw, qx, qy, qz = (float(x) for x in body.orientation)
+            builder = (r.RigidBody.dynamic().translation(tuple(float(x) for x in body.position))
+                       .rotation(r.Rotation3.from_quaternion(qw, qx, qy, qz).scaled_axis)
+                       .can_sleep(False).ccd_enabled(False))
+            collider = r.Collider.cuboid(hx, hy, hz).mass(float(body.mass)).friction(0.5).restitution(0.0) \
+                .friction_combine_rule(average)
+            self.handles.append(w.add_body(builder, colliders=[collider]))
+
+    def step(self) -> None:
+        self.world.step()
+
+    def kinetic_energy(self) -> float:
+        bodies = self.world.rigid_bodies
+        return float(sum(bodies[h].kinetic_energy() for h in self.handles))
+
+    def metrics(self) -> dict:
+        depths = []
+        colliders = self.world.colliders
+        for pair in self.world.narrow_phase.contact_pairs():
+            pose1 = colliders.get(pair.collider1).position
+            pose2 = colliders.get(pair.collider2).position
+            for m in pair.manifolds:
+                n = np.asarray(pose1.rotation.transform_vector(m.local_n1).to_tuple())
+                for point in m.points:
+                    p1 = np.asarray(pose1.transform_point(point.local_p1).to_tuple())
+                    p2 = np.asarray(pose2.transform_point(point.local_p2).to_tuple())
+                    depths.append(max(0.0, -float(np.dot(p2 - p1, n))))
+        pen = np.asarray(depths)
+        return {"kinetic_energy": self.kinetic_energy(), "contacts": len(pen),
+                "max_penetration": float(pen.max()) if len(pen) else 0.0,
+                "mean_penetration": float(pen.mean()) if len(pen) else 0.0}
+
+    def position(self, i: int) -> np.ndarray:
+        return np.asarray(self.world.rigid_bodies[self.handles[i]].translation.to_tuple())
+
+    def close(self) -> None:
+        self.world.clear()
+
+
 PEERS = {
     "pybullet": Peer("pybullet", package="pybullet", extra="peers", translatable=translatable_to_pybullet,
                      open=PyBulletWorld),
+    "rapier-t1": Peer("rapier-t1", package="rapier3d", extra="peers", translatable=translatable_to_pybullet,
+                      open=lambda scene, iterations: RapierWorld(scene, iterations, threads=1)),
+    "rapier-t2": Peer("rapier-t2", package="rapier3d", extra="peers", translatable=translatable_to_pybullet,
+                      open=lambda scene, iterations: RapierWorld(scene, iterations, threads=2)),
 }
-"""Every peer engine by name. ``sandbox bench`` runs ``pybullet`` beside our solvers."""
+"""Every peer engine by name. ``sandbox bench`` runs ``pybullet`` beside our solvers;
+``benchmarks/peer_speed.py`` runs any of them."""

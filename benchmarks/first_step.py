@@ -1,0 +1,79 @@
+"""Time to the first step of every shipped scene, as a new user meets it: a fresh process that
+imports the package, loads the scene, builds the world and runs one step.
+
+    python benchmarks/first_step.py [--scenes stack_20,confined_pile] [--solver <the scene's>]
+                                    [--cache warm|fresh|both]
+
+``warm``: Taichi's offline kernel cache as the previous runs left it (the scene is run once
+untimed first, so the cache holds its kernels); ``fresh``: an empty cache directory
+(``TI_OFFLINE_CACHE_FILE_PATH``), as on a newly installed machine. Each figure is the wall
+time of the whole child process, interpreter start-up included, and its split: import, world
+build (scene parsing, buffers, upload) and the first step (compiling or loading its kernels).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+CHILD = r"""
+import json, sys, time
+t0 = time.perf_counter()
+from sandbox import Scene, World
+from sandbox.scene.library import resolve_scene
+t1 = time.perf_counter()
+scene = Scene.load(resolve_scene(sys.argv[1]))
+kw = {"solver": sys.argv[2]} if sys.argv[2] else {}
+world = World(scene, arch="cpu", **kw)
+t2 = time.perf_counter()
+world.step(1)
+t3 = time.perf_counter()
+print(json.dumps({"import": t1 - t0, "build": t2 - t1, "step": t3 - t2}))
+"""
+
+SCENES = Path(__file__).resolve().parent.parent / "scenes"
+
+
+def run_child(scene: str, solver: str, cache_dir: str | None) -> dict:
+    env = dict(os.environ, TI_SKIP_VERSION_CHECK="ON")
+    if cache_dir is not None:
+        env["TI_OFFLINE_CACHE_FILE_PATH"] = cache_dir
+    t = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", CHILD, scene, solver], env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t
+    if out.returncode != 0:
+        raise SystemExit(f"{scene}: the child failed:\n{out.stderr[-2000:]}")
+    split = json.loads(out.stdout.strip().splitlines()[-1])
+    return dict(split, wall=wall)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenes", default=",".join(sorted(p.stem for p in SCENES.glob("*.toml"))))
+    ap.add_argument("--solver", default="", help="default: each scene's own")
+    ap.add_argument("--cache", choices=("warm", "fresh", "both"), default="warm")
+    a = ap.parse_args()
+    print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
+          "seconds of a fresh process: wall (import / build / first step)")
+    for scene in a.scenes.split(","):
+        row = f"{scene:22s}"
+        if a.cache in ("warm", "both"):
+            run_child(scene, a.solver, None)  # fill the cache
+            r = run_child(scene, a.solver, None)
+            row += f"  warm {r['wall']:6.1f} s ({r['import']:.1f} / {r['build']:.1f} / {r['step']:.1f})"
+        if a.cache in ("fresh", "both"):
+            with tempfile.TemporaryDirectory() as empty:
+                r = run_child(scene, a.solver, empty)
+            row += f"  fresh {r['wall']:6.1f} s ({r['import']:.1f} / {r['build']:.1f} / {r['step']:.1f})"
+        print(row, flush=True)
+
+
+if __name__ == "__main__":
+    main()
