@@ -48,7 +48,7 @@ def pin_cpu_workers(tries: int = 6) -> list[int]:
     Linux's wake-affine placement now and then puts both workers on the CPU that woke
     them; the two then take turns by time slices, and the iteration loop takes 2.5x as
     long. Measured on the 2-vCPU VM, pile_1000, mass splitting: the loop's p90 was 9.9-11.6
-    ms free against 3.8-4.7 ms pinned (median 3.4-4.2 both), and peer_pybullet's median
+    ms free against 3.8-4.7 ms pinned (median 3.4-4.2 both), and peer_speed's (then peer_pybullet's) median
     ratio 1.12-1.31x free against 1.78-1.82x pinned (runs alternated). Workers are told apart by the
     CPU time they gain while a kernel keeps each of them busy (one task per thread, as the
     team starts its members); nothing else in the process is touched.

@@ -31,7 +31,7 @@ after as many sweeps as the row's iteration count).
 
 Scaling: grid piles of growing size (``Scene.from_dict``), ms/step against bodies and
 contact points. Peers: when pybullet is importable, every box-and-plane scene also runs in
-pybullet (set up by ``sandbox/peers.py``, shared with ``benchmarks/peer_pybullet.py``) with the same dt
+pybullet (set up by ``sandbox/peers.py``, shared with ``benchmarks/peer_speed.py``) with the same dt
 and ``numSolverIterations`` = iterations, through the same protocol, in the same process.
 
 Outputs in ``--out``: ``bench.csv`` and ``bench.json`` (one row per scene x solver x
