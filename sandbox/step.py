@@ -110,7 +110,7 @@ class Stepper:
         from .persistence import match_contacts, store_contacts
         from .sleep import after_step, rest_arguments
         from .solvers.contact_spring import row_params
-        from .solvers.rows import prepare_rows
+        from .solvers.rows import prepare_rows, upload_row_params
 
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
         awake = self.edits.awake_set(c.effects.sleeping)
@@ -132,15 +132,15 @@ class Stepper:
             clear_bodies(b.impacts, b.bodies)
         bounce = c.effects.restitution
         with p.stage("prepare"):
-            params = row_params(s, h_sub, plan.biased, h, c.gravity)
+            upload_row_params(b.rows, row_params(s, h_sub, plan.biased, h, c.gravity))
             if fused:
                 blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
-                step_kernels.prepare_step(b.rows, b.contacts, b.bodies, b.history, blk, params, s.match_distance,
+                step_kernels.prepare_step(b.rows, b.contacts, b.bodies, b.history, blk, s.match_distance,
                                           s.warm_start / k, kind, mode, omega, scaled, contact_switch(c.effects),
                                           self.edits.dispatch)
                 c.schedule.color(b, step_count)
             else:
-                prepare_rows(b.rows, b.contacts, b.bodies, params)
+                prepare_rows(b.rows, b.contacts, b.bodies)
                 match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
                 c.schedule.prepare(b, s, step_count, contact_switch(c.effects))
         track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load

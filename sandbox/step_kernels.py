@@ -17,9 +17,8 @@ from .contacts import collide_pairs_loops
 from .integrate import BIG, check_velocities_loops
 from .persistence import match_contact, store_contacts_loops
 from .sleep import rest_and_label_loops
-from .solvers.contact_spring import RowParams
 from .solvers.mass_splitting import build_adjacency_loops, update_support_loops
-from .solvers.rows import prepare_row, respond_row, set_row_params
+from .solvers.rows import prepare_row, respond_row
 
 
 @ti.kernel
@@ -42,14 +41,13 @@ def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template
 
 @ti.kernel
 def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), hist: ti.template(),
-                 blk: ti.template(), params: RowParams, match_distance: ti.f32, warm_factor: ti.f32,
+                 blk: ti.template(), match_distance: ti.f32, warm_factor: ti.f32,
                  kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template(),
                  friction: ti.template(), dispatch: ti.template()):
     """Rows and warm-start matching in one loop over the points, the schedule's adjacency
     (its split counts read both), then the row responses and springs (which read the
     split scales): each stage reads only its own point's earlier results, so these are
     the bits of the separate launches, in one dispatch."""
-    set_row_params(rows, params)
     ti.loop_config(serialize=ti.static(dispatch.serial))
     for q in range(c.count[None]):
         prepare_row(rows, c, bodies, q)

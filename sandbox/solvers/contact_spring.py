@@ -57,12 +57,12 @@ formulation.py), and the split's share kept for blocks not counted in n_b (Setti
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
 
-RowParams = ti.types.vector(PARAM_COUNT, ti.f32)
 
 
-def row_params(settings, h: float, sweeps: int, dt: float, gravity):
-    """This step's ``RowParams`` from ``settings`` for substeps of ``h`` [s] with ``sweeps``
-    biased and as many relax sweeps each, in steps of ``dt`` [s], under ``gravity`` [m/s^2]."""
+def row_params(settings, h: float, sweeps: int, dt: float, gravity) -> list[float]:
+    """This step's ``Rows.params`` values from ``settings`` for substeps of ``h`` [s] with
+    ``sweeps`` biased and as many relax sweeps each, in steps of ``dt`` [s], under ``gravity``
+    [m/s^2] (rows.upload_row_params stores them)."""
 
     values = [0.0] * PARAM_COUNT
     values[INV_H] = 1.0 / h
@@ -80,7 +80,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity):
     values[GRAVITY_REACH] = g * dt * dt
     values[BAUMGARTE_RATE] = baumgarte_rate(settings, dt)
     values[IDLE_SHARE] = settings.idle_split
-    return RowParams(values)
+    return values
 
 
 @ti.func

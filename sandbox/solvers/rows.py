@@ -42,10 +42,11 @@ When asked (restitution, breakable bodies, ``World.track_impulses``) each subste
 impulses are summed into ``lam_step``, the step's impulse.
 """
 
+import numpy as np
 import taichi as ti
 
 from ..math3d import plane_basis, quat_rotate, quat_rotate_inv
-from .contact_spring import INV_H, MAX_PUSH, PARAM_COUNT, RESTITUTION_THRESHOLD, RowParams, row_spring, supported_load
+from .contact_spring import INV_H, MAX_PUSH, PARAM_COUNT, RESTITUTION_THRESHOLD, row_spring, supported_load
 from .rolling import respond_rolling, solve_rolling
 from .split_scales import block_scales
 
@@ -110,10 +111,14 @@ def _share(inv_mass: ti.f32, inv_inertia: ti.template(), r: vec3, e: vec3) -> ti
     return inv_mass + rxe.dot(inv_inertia @ rxe)
 
 
-@ti.func
-def set_row_params(rows: ti.template(), params: ti.template()):
-    for i in ti.static(range(PARAM_COUNT)):
-        rows.params[i] = params[i]
+def upload_row_params(rows, values: list[float]) -> None:
+    """Store this step's constants (contact_spring.row_params) in ``rows.params``, from the host
+    only when they changed: a kernel argument of 16 floats cost ~0.1 ms of Python per step (its
+    vector built and unpacked on every launch), about a sixth of a small scene's step."""
+    key = tuple(values)
+    if getattr(rows, "_uploaded_params", None) != key:
+        rows.params.from_numpy(np.asarray(values, dtype=np.float32))
+        rows._uploaded_params = key
 
 
 @ti.func
@@ -147,15 +152,14 @@ def prepare_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
 
 
 @ti.func
-def prepare_rows_loops(rows: ti.template(), c: ti.template(), bodies: ti.template(), params: ti.template()):
-    set_row_params(rows, params)
+def prepare_rows_loops(rows: ti.template(), c: ti.template(), bodies: ti.template()):
     for q in range(c.count[None]):
         prepare_row(rows, c, bodies, q)
 
 
 @ti.kernel
-def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template(), params: RowParams):
-    prepare_rows_loops(rows, c, bodies, params)
+def prepare_rows(rows: ti.template(), c: ti.template(), bodies: ti.template()):
+    prepare_rows_loops(rows, c, bodies)
 
 
 @ti.func
