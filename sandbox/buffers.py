@@ -15,6 +15,8 @@ from __future__ import annotations
 import weakref
 from dataclasses import dataclass
 
+import taichi as ti
+
 from .bodies import Bodies
 from .broadphase import Broadphase
 from .contacts import Contacts
@@ -65,8 +67,10 @@ class Capacities:
         return Capacities(**values)
 
 
+@ti.data_oriented
 class BufferSet:
-    """Every Taichi container one world needs; see the module docstring."""
+    """Every Taichi container one world needs; see the module docstring. Data-oriented: the
+    fused step kernels take it whole (step_kernels.py)."""
 
     def __init__(self, caps: Capacities):
         self.caps = caps

@@ -135,9 +135,8 @@ class Stepper:
             upload_row_params(b.rows, row_params(s, h_sub, plan.biased, h, c.gravity))
             if fused:
                 blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
-                step_kernels.prepare_step(b.rows, b.contacts, b.bodies, b.history, blk, s.match_distance,
-                                          s.warm_start / k, kind, mode, omega, scaled, contact_switch(c.effects),
-                                          self.edits.dispatch)
+                step_kernels.prepare_step(b, blk, s.match_distance, s.warm_start / k, kind, mode, omega, scaled,
+                                          contact_switch(c.effects), self.edits.dispatch)
                 c.schedule.color(b, step_count)
             else:
                 prepare_rows(b.rows, b.contacts, b.bodies)
@@ -161,8 +160,7 @@ class Stepper:
             if bounce:
                 c.schedule.restitution(b, awake, contact_switch(c.effects), s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
             if fused:
-                step_kernels.finish_step(b.history, b.contacts, b.rows, b.bodies, b.shapes, b.errors, b.blocks,
-                                         c.schedule.kind, k, awake, *rest_arguments(h, s), self.edits.dispatch)
+                step_kernels.finish_step(b, c.schedule.kind, k, awake, *rest_arguments(h, s), self.edits.dispatch)
             else:
                 from .solvers.mass_splitting import update_support
 
@@ -185,8 +183,7 @@ class Stepper:
             b, st = self.edits.buf, self.edits.settings
             awake = self.edits.awake_set(sleeping)
             if fused:
-                step_kernels.begin_and_collide(b.bodies, b.errors, b.bp, b.shapes, b.contacts, b.pool,
-                                               b.manifold_cache, st.contact_margin, st.slop, h, speculation(st),
+                step_kernels.begin_and_collide(b, st.contact_margin, st.slop, h, speculation(st),
                                                *st.manifold_reuse_bounds(), self.edits.kinds, awake, self.edits.dispatch)
             else:
                 self._collide(h, awake)

@@ -7,6 +7,9 @@ both worker threads. Every stage's loops are written once as a ``ti.func`` (``*_
 next to its kernel); here they are chained at the top level of one kernel each, so every
 loop stays a parallel loop run in the same order as the separate launches: the same bits.
 ``step.py`` uses these when the profiler is off (the profiler times the separate kernels).
+Each takes the world's ``BufferSet`` as one template argument ``b`` rather than its parts:
+Taichi works out a launch's kernel instance from its template arguments in Python, ~6
+attribute look-ups per data-oriented argument, which came to a fifth of a small scene's step.
 """
 
 import taichi as ti
@@ -22,26 +25,24 @@ from .solvers.rows import prepare_row, respond_row
 
 
 @ti.kernel
-def begin_and_collide(bodies: ti.template(), err: ti.template(), bp: ti.template(), shapes: ti.template(),
-                      c: ti.template(), pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32,
-                      h: ti.f32, speculative: ti.template(), reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(),
-                      awake: ti.template(), dispatch: ti.template()):
+def begin_and_collide(b: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32, speculative: ti.template(),
+                      reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(), awake: ti.template(),
+                      dispatch: ti.template()):
     """Save the good state, clear the error flags, world inertias, broadphase, narrowphase
     (``awake``: of every body, or of a sleeping world's awake ones; awake.py; ``dispatch``: how
     the heavy loops run, dispatch.py)."""
-    err.flags[None] = 0
-    err.body[None] = BIG
-    save_good_state_loops(bodies, awake)
-    update_world_inertia_loops(bodies, awake)
-    build_dynamic_grid_loops(bp, shapes, bodies, margin, h, speculative, err, awake, dispatch)
-    find_pairs_loops(bp, shapes, awake, dispatch)
-    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, speculative, reuse_d2, reuse_sin, kinds,
-                        awake, dispatch)
+    b.errors.flags[None] = 0
+    b.errors.body[None] = BIG
+    save_good_state_loops(b.bodies, awake)
+    update_world_inertia_loops(b.bodies, awake)
+    build_dynamic_grid_loops(b.bp, b.shapes, b.bodies, margin, h, speculative, b.errors, awake, dispatch)
+    find_pairs_loops(b.bp, b.shapes, awake, dispatch)
+    collide_pairs_loops(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, slop, h, speculative,
+                        reuse_d2, reuse_sin, kinds, awake, dispatch)
 
 
 @ti.kernel
-def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), hist: ti.template(),
-                 blk: ti.template(), match_distance: ti.f32, warm_factor: ti.f32,
+def prepare_step(b: ti.template(), blk: ti.template(), match_distance: ti.f32, warm_factor: ti.f32,
                  kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template(),
                  friction: ti.template(), dispatch: ti.template()):
     """Rows and warm-start matching in one loop over the points, the schedule's adjacency
@@ -49,24 +50,23 @@ def prepare_step(rows: ti.template(), c: ti.template(), bodies: ti.template(), h
     split scales): each stage reads only its own point's earlier results, so these are
     the bits of the separate launches, in one dispatch."""
     ti.loop_config(serialize=ti.static(dispatch.serial))
-    for q in range(c.count[None]):
-        prepare_row(rows, c, bodies, q)
-        match_contact(hist, c, rows, match_distance, warm_factor, q)
-    build_adjacency_loops(blk, c, bodies, rows, kind, mode, omega)
+    for q in range(b.contacts.count[None]):
+        prepare_row(b.rows, b.contacts, b.bodies, q)
+        match_contact(b.history, b.contacts, b.rows, match_distance, warm_factor, q)
+    build_adjacency_loops(blk, b.contacts, b.bodies, b.rows, kind, mode, omega)
     ti.loop_config(serialize=ti.static(dispatch.serial))
-    for q in range(c.count[None]):
-        respond_row(rows, c, bodies, blk, split, friction, q)
+    for q in range(b.contacts.count[None]):
+        respond_row(b.rows, b.contacts, b.bodies, blk, split, friction, q)
 
 
 @ti.kernel
-def finish_step(hist: ti.template(), c: ti.template(), rows: ti.template(), bodies: ti.template(),
-                shapes: ti.template(), err: ti.template(), blk: ti.template(), kind: ti.template(), substeps: ti.i32,
-                awake: ti.template(), h: ti.f32, lin: ti.f32, ang: ti.f32, rest_time: ti.f32, dispatch: ti.template()):
+def finish_step(b: ti.template(), kind: ti.template(), substeps: ti.i32, awake: ti.template(), h: ti.f32, lin: ti.f32,
+                ang: ti.f32, rest_time: ti.f32, dispatch: ti.template()):
     """Velocity check, the bodies' support loads and the contact store for the next step; in a
     sleeping world also the rest timers and islands (sleep.rest_and_label_loops, its scalars
     after ``awake``)."""
-    check_velocities_loops(bodies, err, awake)
-    update_support_loops(blk, c, rows, bodies, awake, kind, dispatch)
-    store_contacts_loops(hist, c, rows, shapes, substeps, awake, dispatch)
+    check_velocities_loops(b.bodies, b.errors, awake)
+    update_support_loops(b.blocks, b.contacts, b.rows, b.bodies, awake, kind, dispatch)
+    store_contacts_loops(b.history, b.contacts, b.rows, b.shapes, substeps, awake, dispatch)
     if ti.static(awake.compact):
-        rest_and_label_loops(awake, c, bodies, h, lin, ang, rest_time, True)
+        rest_and_label_loops(awake, b.contacts, b.bodies, h, lin, ang, rest_time, True)
