@@ -45,14 +45,15 @@ import taichi as ti
 from ..formulation import baumgarte_rate
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
- UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE) = range(15)
-PARAM_COUNT = 16
+ UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z) = range(18)
+PARAM_COUNT = 18
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
 deflection [1], the support average's blend per step [1], the step [s], the up
 direction (against gravity; zero without gravity), the gap gravity closes in one step
 from rest, |g| dt^2 [m], and the paper formulation's Baumgarte rate [1/s] (0: the soft step;
-formulation.py), and the split's share kept for blocks not counted in n_b (Settings.idle_split)."""
+formulation.py), the split's share kept for blocks not counted in n_b (Settings.idle_split), and
+gravity [m/s^2] (read by the iteration loop's fused launches, solvers/substep.py)."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
@@ -80,7 +81,14 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity) -> list[floa
     values[GRAVITY_REACH] = g * dt * dt
     values[BAUMGARTE_RATE] = baumgarte_rate(settings, dt)
     values[IDLE_SHARE] = settings.idle_split
+    values[GRAVITY_X], values[GRAVITY_Y], values[GRAVITY_Z] = (float(x) for x in gravity)
     return values
+
+
+@ti.func
+def params_gravity(rows: ti.template()) -> ti.math.vec3:
+    """The step's gravity [m/s^2] from ``rows.params`` (row_params)."""
+    return ti.math.vec3(rows.params[GRAVITY_X], rows.params[GRAVITY_Y], rows.params[GRAVITY_Z])
 
 
 @ti.func

@@ -187,5 +187,4 @@ class Schedule:
 
     def _loop_args(self, loop: Loop) -> tuple:
         """The arguments every iteration-loop kernel of substep.py starts with."""
-        return (loop.buf, self.kind, self.visit, loop.friction, loop.warm, loop.track, loop.awake, loop.motion,
-                loop.gravity, loop.h)
+        return (loop.buf, self.kind, self.visit, loop.friction, loop.warm, loop.track, loop.awake, loop.motion, loop.h)

@@ -36,6 +36,7 @@ import taichi as ti
 from ..awake import body_id, body_total
 from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loop
 from . import team as tm
+from .contact_spring import params_gravity
 from .mass_splitting import gather_body, sweep_block, sweep_blocks, warm_block, warm_start_blocks
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX, add_step_impulse, add_step_impulses_loop
@@ -79,12 +80,13 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
 @ti.kernel
 def iterate_in_order(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
                      warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
-                     gravity: vec3, h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32):
+                     h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, everything in order on one thread:
     ``sweeps`` biased and ``relax`` relax sweeps each (formulation.sweep_plan). ``track``: each
     substep's impulses are added to the step's (``rows.lam_step``). ``b``: the world's BufferSet
     (one template argument instead of six: step_kernels.py says why)."""
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
+    gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
     fold = ti.static(folds_warm_start(schedule, warm))
     ti.loop_config(serialize=True)
     for it in range(iterations):
@@ -107,12 +109,13 @@ def iterate_in_order(b: ti.template(), kind: ti.template(), schedule: ti.templat
 @ti.kernel
 def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
                      warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
-                     gravity: vec3, h: ti.f32, first: ti.i32, then_warm: ti.i32):
+                     h: ti.f32, first: ti.i32, then_warm: ti.i32):
     """One substep of ``h`` with one sweep each, every phase's loops parallel, in one launch.
     ``first``: this substep does its own gravity and warm start; ``then_warm``: its relax
     sweep does the next one's (both 1 / 0 decided by ``Schedule.iterate`` with ``folds_warm_start``)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
+    gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
     _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
     _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
     positions_loop(bodies, awake, motion, h, err)
@@ -275,11 +278,12 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
 @ti.kernel
 def iterate_shared(team: ti.template(), b: ti.template(), kind: ti.template(), schedule: ti.template(),
                    friction: ti.template(), warm: ti.template(), track: ti.template(), awake: ti.template(),
-                   motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32,
+                   motion: ti.template(), h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32,
                    phases: ti.i32, members: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, shared by ``members`` threads."""
     ti.static_assert(schedule != PGS, "serial PGS has nothing to share")
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
+    gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
     tm.reset_loop(team, phases * members)
     for i in range(members * tm.TASK_ITEMS):
         if i % tm.TASK_ITEMS == 0:
