@@ -61,7 +61,6 @@ class Edits:
         """``fracture.FractureResult`` of each body of the last fracture (how exact its pieces were)."""
         self._breaking: list[int] = []  # bodies that broke in the last step, fractured before the next
         self.sleeping = False  # the sleeping effect is on (set_sleeping)
-        self.pair_total = 0  # candidate pairs of the last collision (read by grow_if_needed)
         reserve = _fracture_reserve(scene) + int(reserve_pieces)
         self.host = host_world(scene, settings)
         self.kinds = _union_kinds(self.host.kinds, ((HULL,) if reserve else ()) + tuple(names[k] for k in reserve_kinds))
@@ -91,7 +90,6 @@ class Edits:
         b = self.buf
         entries = int(b.bp.entry_total[None])
         pairs = int(b.bp.pair_total[None])
-        self.pair_total = pairs
         sleepers_full = self.sleeping and b.sleep.grid_full
         if entries <= b.bp.entry_capacity and pairs <= b.bp.pair_capacity and not sleepers_full:
             return False

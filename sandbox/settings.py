@@ -158,10 +158,10 @@ class Settings:
     ``"one"``: all iterations in one launch, run in order on one thread; ``"per-substep"``:
     one launch per iteration whose phases each run in parallel (not for ``pgs-colored``,
     which then goes stage by stage); ``"per-stage"``: one launch per phase, as the profiler
-    times them; ``"auto"``: on the CPU ``"shared"`` from 256 candidate pairs on and ``"one"``
-    below (launch overhead, not arithmetic, bounds our scenes: a thread-pool wake-up per phase
-    would cost more than the phase, and a few hundred points do not pay for the shared loop's
-    barriers; schedule.SHARED_MIN_PAIRS), ``"per-substep"`` on CUDA. A world with its profiler on, or recording residuals, always
+    times them; ``"auto"``: on the CPU ``"one"`` in a world of at most 64 bodies and ``"shared"``
+    in larger ones (launch overhead, not arithmetic, bounds our scenes: a thread-pool wake-up per
+    phase would cost more than the phase, and a few dozen bodies do not pay for the shared loop's
+    barriers; schedule.ONE_THREAD_BODY_LIMIT), ``"per-substep"`` on CUDA. A world with its profiler on, or recording residuals, always
     goes stage by stage."""
 
     split_relaxation: float = 1.8

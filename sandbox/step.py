@@ -146,7 +146,7 @@ class Stepper:
         loop = Loop(b, contact_switch(c.effects), s.warm_start > 0.0, track, gravity, h_sub, k, plan.biased, plan.relax,
                     awake, motion_switch(c.effects))
         staged = p.enabled or c.record_residuals or pause  # a timer per stage, a read per sweep
-        launch = "per-stage" if staged else c.schedule.launch(s, c.arch, loop, self.edits.pair_total)
+        launch = "per-stage" if staged else c.schedule.launch(s, c.arch, loop)
         if launch == "per-stage":
             yield from self._iterate_by_stage(c.schedule, loop, c.record_residuals, pause)
         else:

@@ -25,13 +25,16 @@ from . import rows as contact_rows
 
 _VISIT = {"serial": substep.PGS, "colored": substep.PGS_COLORED, "blocks": substep.BLOCKS}
 _BLOCK = {"point": mass_splitting.PER_POINT, "manifold": mass_splitting.PER_MANIFOLD}
-SHARED_MIN_PAIRS = 256
-"""On the CPU, "auto" shares the iteration loop between the threads from this many candidate
-pairs on, and runs it on one thread below: each of the shared loop's phases ends at a barrier
-where the threads wait for each other, which a few hundred points do not pay for. Measured
-(mass splitting, 15 iterations, unsynced ms/step, one run): shared against one thread,
-playground (164 pairs) 0.75 / 0.67, friction_arch (24) 0.76 / 0.68, mass_ratio_stacks (12)
-0.72 / 0.59, pyramid_20 (590) 2.44 / 3.53."""
+ONE_THREAD_BODY_LIMIT = 64
+"""On the CPU, "auto" runs the iteration loop on one thread in a world whose buffers hold at
+most this many bodies, and shares it between the threads in larger ones: each of the shared
+loop's phases ends at a barrier where the threads wait for each other, which a few dozen
+bodies do not pay for. Measured (mass splitting, 15 iterations, unsynced ms/step, one run):
+shared against one thread, friction_arch (24 pairs) 0.76 / 0.68, mass_ratio_stacks (12) 0.72 /
+0.59, stack_20 at 4 iterations 0.23 / 0.12 ms for the loop alone; the playground (164 pairs)
+0.75 / 0.67, but pyramid_20 (590) 2.44 / 3.53. The choice follows the buffer class, not the
+step's pair count: a world that crossed a pair threshold would compile the other launch in the
+middle of a run (a 0.9-1.7 s stall measured in the web sandbox after a debris drop)."""
 
 _FALLBACK = {"shared": "one", "per-substep": "per-stage"}
 """The launch to use instead when a schedule cannot run the one asked for (SolverInfo.launches)."""
@@ -150,13 +153,12 @@ class Schedule:
         return done
 
     # ------------------------------------------------------------------ the fused iteration loop
-    def launch(self, settings, arch: str, loop: Loop, pairs: int) -> str:
+    def launch(self, settings, arch: str, loop: Loop) -> str:
         """Which launch runs the iteration loop (Settings.iteration_launch; "per-stage" is also
-        what a profiled world uses) for a step with ``pairs`` candidate pairs. All give
-        bit-identical results."""
+        what a profiled world uses). All give bit-identical results."""
         launch = settings.iteration_launch
         if launch == "auto" and arch == "cpu":
-            launch = "shared" if pairs >= SHARED_MIN_PAIRS else "one"
+            launch = "one" if loop.buf.caps.bodies <= ONE_THREAD_BODY_LIMIT else "shared"
         elif launch == "auto":
             launch = "per-substep"
         if launch == "shared" and arch != "cpu":
