@@ -52,8 +52,9 @@ class HostWorld:
     has_rolling_friction: bool = False  # some body has rolling or torsional friction > 0
 
     def capacities(self, pairs: int | None = None, grid_entries: int | None = None, reserve_pieces: int = 0) -> Capacities:
-        """Capacity classes for this world, with room for ``reserve_pieces`` fracture pieces (each a
-        new body, shape and hull of up to RESERVE_HULL vertices / faces / loop entries / edges)."""
+        """Capacity classes for this world, with room for ``reserve_pieces`` added bodies (fracture
+        pieces, a scene's scripted drops: each a new body, shape and hull of up to RESERVE_HULL
+        vertices / faces / loop entries / edges, with its share of grid entries and pairs)."""
         sizes = PolytopePool.sizes(self.polytopes)
         r = int(reserve_pieces)
         hv, hf, hl, he = RESERVE_HULL
@@ -62,8 +63,8 @@ class HostWorld:
             planes=len(self.plane_arrays["normal"]), polys=sizes[0] + r, poly_verts=sizes[1] + r * hv,
             poly_faces=sizes[2] + r * hf, poly_loops=sizes[3] + r * hl, poly_edges=sizes[4] + r * he,
             static_hash=2 * self.static_entries,
-            static_entries=self.static_entries, grid_entries=grid_entries or (16 * self.n_dynamic + 1024),
-            pairs=pairs or (12 * self.n_dynamic + 1024),
+            static_entries=self.static_entries, grid_entries=grid_entries or (16 * (self.n_dynamic + r) + 1024),
+            pairs=pairs or (12 * (self.n_dynamic + r) + 1024),
         )
 
 

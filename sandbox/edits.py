@@ -61,11 +61,15 @@ class Edits:
         """``fracture.FractureResult`` of each body of the last fracture (how exact its pieces were)."""
         self._breaking: list[int] = []  # bodies that broke in the last step, fractured before the next
         self.sleeping = False  # the sleeping effect is on (set_sleeping)
-        reserve = _fracture_reserve(scene) + int(reserve_pieces)
+        dropped = [b for e in scene.events if e.kind == "drop" for b in e.new_bodies]
+        drop_kinds = tuple(sorted({s.kind for b in dropped for s in b.shapes if s.kind in names}))
+        reserve = _fracture_reserve(scene) + len(dropped) + int(reserve_pieces)
         self.host = host_world(scene, settings)
-        self.kinds = _union_kinds(self.host.kinds, ((HULL,) if reserve else ()) + tuple(names[k] for k in reserve_kinds))
+        self.kinds = _union_kinds(self.host.kinds, ((HULL,) if reserve - len(dropped) else ())
+                                  + tuple(names[k] for k in reserve_kinds + drop_kinds))
         self.reserve_kinds = tuple(sorted(reserve_kinds))
-        self.anisotropic_reserved = any(k != "sphere" for k in reserve_kinds)  # a box, capsule or hull may be
+        # a box, capsule or hull may be added (by the caller or the scene's own drops):
+        self.anisotropic_reserved = any(k != "sphere" for k in reserve_kinds + drop_kinds)
         self._finalizer = None
         self._acquire(self.host.capacities(reserve_pieces=reserve))
         self._update_breakable()
