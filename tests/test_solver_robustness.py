@@ -57,6 +57,39 @@ def test_split_schedules_keep_the_pyramid_standing(solver, iterations):
     assert moved < PYRAMID_TOP_TOLERANCE and ke < PYRAMID_RESTING_KE, f"top moved {moved:.3f} m, KE {ke:.3g} J"
 
 
+STACK_SWAY = {
+    # measured 2026-11-25 (the same bits on 36f221a): the stack's sway grows ~7x per 100 steps
+    # (KE 0.016 J at step 100, 7.6 J at 400, 3.6e4 J at 800) until it falls; 8 and 15 iterations
+    # keep a bounded 0.01-0.3 J sway, mass splitting at 4 comes to rest (1e-10 J)
+    ("pgs", 2): "serial PGS at 2 iterations: the 20-box stack's sway grows until it topples (peak 14 m/s)",
+    ("pgs", 4): "serial PGS at 4 iterations: the 20-box stack's sway grows ~7x per 100 steps and it topples "
+                "after ~800 steps",
+}
+
+
+def _stack_combos():
+    for solver in ("pgs", "mass-splitting"):
+        for k in (2, 4):
+            reason = STACK_SWAY.get((solver, k))
+            marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
+            yield pytest.param(solver, k, marks=marks, id=f"{solver}-{k}")
+
+
+@pytest.mark.parametrize("solver, iterations", list(_stack_combos()))
+def test_the_20_box_stack_stays_standing_at_few_iterations(solver, iterations):
+    """stack_20, 900 steps (15 s): no box leaves its column by more than 5 cm and the stack is at
+    rest at the end; few iterations may sag, a statically stable stack must not fall."""
+    world = World(Scene.load(SCENES_DIR / "stack_20.toml"), solver=solver, iterations=iterations, arch="cpu")
+    start = world.state()["position"]
+    energies = []
+    for _ in range(900):
+        world.step(1)
+        energies.append(world.metrics()["kinetic_energy"])
+    drift = float(np.linalg.norm((world.state()["position"] - start)[:, :2], axis=1).max())
+    ke = float(np.mean(energies[-60:]))
+    assert drift < PYRAMID_TOP_TOLERANCE and ke < PYRAMID_RESTING_KE, f"drift {drift:.3f} m, KE {ke:.3g} J"
+
+
 def _mechanical_energy(world, masses):
     st = world.state()
     m = world.metrics()
