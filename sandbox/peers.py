@@ -181,7 +181,8 @@ class RapierWorld:
         w.integration_parameters.num_solver_iterations = int(iterations)
         average = r.CoefficientCombineRule.AVERAGE
         for plane in scene.planes:
-            w.add_body(r.RigidBody.fixed().translation(tuple(float(x) for x in np.asarray(plane.normal) * plane.offset)),
+            origin = tuple(float(x) for x in np.asarray(plane.normal) * plane.offset)
+            w.add_body(r.RigidBody.fixed().translation(origin),
                        colliders=[r.Collider.halfspace(tuple(float(x) for x in plane.normal)).friction(0.5)
                                   .restitution(0.0).friction_combine_rule(average)])
         self.handles = []

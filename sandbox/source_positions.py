@@ -19,8 +19,9 @@ _installed = False
 def _position_key(ctx, node) -> tuple:
     body = getattr(node, "body", None)
     first = body[0].lineno if isinstance(body, list) and body and hasattr(body[0], "lineno") else None
-    return (ctx.file, ctx.lineno_offset, ctx.func.func.__name__, ctx.indent, node.__class__.__name__, node.lineno, getattr(node, "end_lineno", None), getattr(node, "col_offset", None),
-            getattr(node, "end_col_offset", None), first)
+    return (ctx.file, ctx.lineno_offset, ctx.func.func.__name__, ctx.indent, node.__class__.__name__, node.lineno,
+            getattr(node, "end_lineno", None), getattr(node, "col_offset", None), getattr(node, "end_col_offset", None),
+            first)
 
 
 def memoise_source_positions() -> None:
