@@ -34,15 +34,17 @@ PYRAMID_SAG = {
 }
 
 
-def _pyramid_combos():
-    for solver in ("mass-splitting", "block-mass-splitting"):
-        for k in (4, 8):
-            reason = PYRAMID_SAG.get((solver, k))
+def _combos(solvers, counts, known_failures):
+    """(solver, iterations) params; a pair in ``known_failures`` is a strict xfail with its reason."""
+    for solver in solvers:
+        for k in counts:
+            reason = known_failures.get((solver, k))
             marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
             yield pytest.param(solver, k, marks=marks, id=f"{solver}-{k}")
 
 
-@pytest.mark.parametrize("solver, iterations", list(_pyramid_combos()))
+@pytest.mark.parametrize("solver, iterations", list(_combos(("mass-splitting", "block-mass-splitting"), (4, 8),
+                                                            PYRAMID_SAG)))
 def test_split_schedules_keep_the_pyramid_standing(solver, iterations):
     """pyramid_20, 600 steps: the top box stays within 5 cm and the pyramid comes to rest."""
     world = World(Scene.load(SCENES_DIR / "pyramid_20.toml"), solver=solver, iterations=iterations, arch="cpu")
@@ -67,15 +69,7 @@ STACK_SWAY = {
 }
 
 
-def _stack_combos():
-    for solver in ("pgs", "mass-splitting"):
-        for k in (2, 4):
-            reason = STACK_SWAY.get((solver, k))
-            marks = [pytest.mark.xfail(strict=True, reason=reason)] if reason else []
-            yield pytest.param(solver, k, marks=marks, id=f"{solver}-{k}")
-
-
-@pytest.mark.parametrize("solver, iterations", list(_stack_combos()))
+@pytest.mark.parametrize("solver, iterations", list(_combos(("pgs", "mass-splitting"), (2, 4), STACK_SWAY)))
 def test_the_20_box_stack_stays_standing_at_few_iterations(solver, iterations):
     """stack_20, 900 steps (15 s): no box leaves its column by more than 5 cm and the stack is at
     rest at the end; few iterations may sag, a statically stable stack must not fall."""
