@@ -53,6 +53,7 @@ class Bodies:
         self.good_lin_vel = ti.Vector.field(3, ti.f32, c)
         self.good_ang_vel = ti.Vector.field(3, ti.f32, c)
         self.support = ti.field(ti.f32, c)  # [N] averaged force holding the body up (contact_spring.py)
+        self.support_slow = ti.field(ti.f32, c)  # [N] the same, followed more slowly, for the preload (contact_preload_lag)
         self.support_points = ti.field(ti.i32, c)  # contact points holding it up, last step
         self.damping = ti.Vector.field(2, ti.f32, c)  # [1/s] linear, angular (scene.spec.RESISTANCE_KEYS)
         self.rolling = ti.Vector.field(2, ti.f32, c)  # [m] rolling, torsional friction lever arms
@@ -77,6 +78,7 @@ class Bodies:
             field.from_numpy(full.astype(np.float32))
         self.count[None] = n
         self.support.fill(0.0)  # a rebuilt world learns its loads again (a few steps)
+        self.support_slow.fill(0.0)
         self.support_points.fill(0)
         update_world_inertia(self, EVERY)
         save_good_state(self, EVERY)

@@ -73,20 +73,44 @@ class Settings:
     never overshoots; together with the regularisation it brings, this is what
     keeps warm-started stacks from ringing when the solver has not converged."""
 
-    contact_deflection: float = 0.005
+    contact_deflection: float = 0.002
     """[1] Largest static deflection a contact should show under its load, as a fraction
     of the smaller shape's bounding radius: a contact that holds up a body whose support
     force F (with what it carries, shared among its support points) would press it further
     at ``contact_hertz`` gets a stiffer spring, omega^2 = F K / (this x radius), up to the
-    stability limit (solvers/contact_spring.py). Without it a spring follows the lighter
-    body's mass, so a 1000 kg box on a 1 kg box sank ~30 cm, and not size, so 1 mm cubes
-    sank ~0.8 mm. 0.005 leaves equal-mass piles at ``contact_hertz`` (a pyramid's bottom row
-    deflects ~3 mm of a 0.87 m radius). 0 turns load stiffening off."""
+    stability limit (solvers/contact_spring.py), and where the limit stops it the preload
+    (``contact_preload``) carries the rest. Without it a spring follows the lighter body's
+    mass, so a 1000 kg box on a 1 kg box sank ~30 cm, and not size, so 1 mm cubes sank
+    ~0.8 mm. 0.002 (1.7 mm of a unit cube's 0.87 m radius): the 210-box pyramid's top sinks
+    35 mm at 15 iterations with every solver, and 48 mm at 4 with mass splitting; at 0.001 the
+    preload took so much of a pyramid's load at 15 iterations that mass splitting was still
+    creeping after 10 s (resting KE 3.5e-5 J, only 2.8x below shuffled parallel PGS: the
+    comparison the sandbox exists for), at 0.005 (before the preload) a pyramid's bottom row
+    deflected ~3 mm. 0 turns load stiffening and the preload off."""
 
     contact_load_time: float = 0.25
     """[s] Time constant of the support-force average that ``contact_deflection`` reads, so
     that a bounce or an impact does not stiffen the spring it is acting through. Longer
     reacts more slowly to a new load (a heavy body landing sinks further first)."""
+
+    contact_preload: float = 1.0
+    """[1] Share of a contact's load beyond what its spring holds within ``contact_deflection``
+    that it carries as a preload: impulse up to the preload is rigid, only what goes beyond it
+    is soft (solvers/contact_spring.py). Why: the stability limit caps a few-iteration split
+    schedule's spring far below what holds a tall pile within that deflection (the 210-box
+    pyramid's top sank 0.32 m with mass splitting at 4 iterations); the preload carries the rest
+    of the load without a stiffer spring, so the limit keeps the dynamics stable and the pile
+    does not sag by the spring's measure. 0 turns it off (the spring alone)."""
+
+    contact_preload_lag: float = 16.0
+    """[1] How slowly the preload follows its load: the support-force average it reads has a time
+    constant of this many 1 / omega_b, omega_b = sqrt(k / M) the rate at which the body bounces on
+    its support springs (k their summed stiffness, M the mass they hold up), and never less than
+    ``contact_load_time``. The preload integrates what the spring carries, so it must be slower
+    than that bounce: a light body under a heavy one bounces slowly (1 kg under 1110 kg on springs
+    capped for the light body: ~2 rad/s), and the 1:1000 heavy-on-light column rocked up and down
+    by 0.3 m at 15 iterations with a fixed 0.25 or 0.5 s; a fixed 1 s settled that column but left
+    a resting block still settling after 5 s at 2 iterations (docs/method-notes.md)."""
 
     max_push_speed: float = 3.0
     """[m/s] Cap on the separation speed the position bias may request, so a
@@ -245,6 +269,7 @@ class Settings:
         for name, low, high, closed in (("contact_stiffness_limit", 0.0, math.inf, True),
                                         ("contact_deflection", 0.0, math.inf, True),
                                         ("contact_load_time", 0.0, math.inf, False),
+                                        ("contact_preload_lag", 0.0, math.inf, False),
                                         ("split_relaxation", 0.0, 2.0, False),
                                         ("baumgarte", 0.0, 1.0, True),
                                         ("idle_split", 0.0, 1.0, False),
@@ -257,6 +282,11 @@ class Settings:
 
                 span = f"{'>=' if closed else '>'} {low:g}" + (f" and < {high:g}" if high != math.inf else "")
                 raise SandboxError(f"{name} must be a finite number {span}, got {value!r}")
+        share = self.contact_preload
+        if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0:
+            from .errors import SandboxError
+
+            raise SandboxError(f"contact_preload must be a number in [0, 1], got {share!r}")
 
     def manifold_reuse_bounds(self) -> tuple[float, float]:
         """(squared distance, sine of the half angle) the narrowphase compares against;

@@ -74,3 +74,16 @@ def test_unknown_settings_are_refused():
         Settings(iteration_launch="threads")
     with pytest.raises(SandboxError, match="unknown setting"):
         Settings().replace(iteration_lunch="one")
+
+
+@pytest.mark.parametrize("name, value, match", [("contact_preload", 1.5, r"contact_preload must be a number in \[0, 1\]"),
+                                                ("contact_preload", -0.1, r"in \[0, 1\], got -0.1"),
+                                                ("contact_preload", float("nan"), r"contact_preload must be"),
+                                                ("contact_preload_lag", 0.0, "contact_preload_lag must be a finite "
+                                                                              "number > 0"),
+                                                ("contact_preload_lag", float("inf"), "contact_preload_lag must")])
+def test_bad_preload_settings_are_refused(name, value, match):
+    from sandbox import Settings
+
+    with pytest.raises(SandboxError, match=match):
+        Settings().replace(**{name: value})

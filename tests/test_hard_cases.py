@@ -14,40 +14,40 @@ from sandbox.hard_cases import all_cases, run_case
 CASES = {case.name: case for case in all_cases()}
 
 KNOWN_FAILURES = {
-    # Figures measured 2026-11-23 with sandbox.hard_cases.run_case on the 2-core CPU machine.
-    # Most of these are the deflection floor of a soft contact under a one-sweep schedule:
-    # delta >= F K~ h^2 / (S kappa^2) (docs/method-notes.md, "Why low iteration counts blew up").
-    ("heavy_on_light_1to100", "pgs@4"): "the 100 kg top sinks 29 mm at 4 iterations (criterion 20 mm)",
-    ("heavy_on_light_1to100", "pgs-colored@4"): "the 100 kg top sinks 29 mm at 4 iterations",
-    ("heavy_on_light_1to100", "jacobi@4"): "the 100 kg top sinks 115 mm at 4 iterations",
-    ("heavy_on_light_1to100", "mass-splitting@4"): "the 100 kg top sinks 128 mm at 4 iterations",
-    ("heavy_on_light_1to100", "block-mass-splitting@4"): "the top sinks 64 mm and walks 93 mm at 4 iterations",
-    ("heavy_on_light_1to1000", "*"): "PGS family: the column tips at 4 iterations, the 1000 kg top sinks 22 mm "
-                                     "at 15 (PGS; 43 mm block MS); mass splitting: sinks 92 mm at 15, 0.59 m at 4",
-    ("stack_3_of_0.001m", "*"): "1 mm cubes sink 0.1-0.3 mm at 15 iterations, 0.9-2 mm at 4 (criterion 5 % of the size)",
+    # Figures measured 2026-11-25 (docs/stability.md, benchmarks/stability_matrix.py) on the 2-core
+    # CPU machine, with the preload (solvers/contact_spring.py): it turned 23 cells of the matrix
+    # from FAIL to PASS (1:100 at 4 iterations, 1:1000 and the 1 mm cubes at 15, the 20-box stack
+    # at 4 with mass splitting) and none the other way.
+    ("heavy_on_light_1to100", "block-mass-splitting@4"): "the 100 kg top walks 160 mm and sinks 40 mm at 4 "
+                                                         "iterations (criterion 20 mm)",
+    ("heavy_on_light_1to1000", "*@4"): "at 4 iterations the PGS family and block mass splitting tip the column "
+                                       "(3.9-4.7 m), mass splitting and Jacobi let the 1000 kg top sink 0.6-0.7 m",
+    ("heavy_on_light_1to1000", "pgs-colored@15"): "the 1000 kg top drifts 20.3 mm at 15 iterations (criterion 20 mm)",
+    ("heavy_on_light_1to1000", "block-mass-splitting@15"): "the 1000 kg top drifts 24.6 mm at 15 iterations",
+    ("stack_3_of_0.001m", "*@4"): "1 mm cubes sink 0.8-1 mm at 4 iterations (criterion 5 % of the size)",
+    ("stack_3_of_0.001m", "block-mass-splitting@15"): "the top 1 mm cube drifts 0.1 mm at 15 iterations "
+                                                      "(criterion 0.02 mm)",
     ("deep_overlap_30pct", "mass-splitting"): "peak separation speed 5.4 m/s at 15 iterations (criterion 5 m/s); "
-                                              "21 mm still overlapping after 3 s at 4",
-    ("deep_overlap_30pct", "block-mass-splitting@4"): "10.5 mm still overlapping after 3 s at 4 iterations",
-    ("deep_overlap_30pct", "jacobi@4"): "11 mm still overlapping after 3 s at 4 iterations",
+                                              "22 mm still overlapping after 3 s at 4",
+    ("deep_overlap_30pct", "block-mass-splitting@4"): "10 mm still overlapping after 3 s at 4 iterations",
+    ("deep_overlap_30pct", "jacobi@4"): "10 mm still overlapping after 3 s at 4 iterations",
     ("friction_arch", "jacobi@4"): "the arch collapses at 4 iterations",
-    ("friction_arch", "mass-splitting@4"): "the arch collapses at 4 iterations (a voussoir flies at 12.7 m/s)",
+    ("friction_arch", "mass-splitting@4"): "the arch collapses at 4 iterations (a voussoir flies at 12.9 m/s)",
     ("friction_arch", "block-mass-splitting@4"): "a voussoir slips 25 mm at 4 iterations",
     ("leaning_planks", "jacobi"): "the card house collapses",
-    ("leaning_planks", "mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 0.77 m)",
+    ("leaning_planks", "mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 0.64 m)",
     ("leaning_planks", "block-mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 1.6 m)",
     ("projectile_200ms_thin_wall", "jacobi"): "no tunnelling, but the under-relaxed sphere rebounds at ~40 m/s",
-    ("stack_20", "jacobi@4"): "the column sinks 37 mm at 4 iterations",
-    ("stack_20", "mass-splitting@4"): "the column sinks 40 mm at 4 iterations (criterion 10 mm)",
     ("stack_20", "block-mass-splitting@4"): "the column topples at 4 iterations (peak 16 m/s)",
     ("stack_20", "pgs-colored@4"): "the column topples at 4 iterations",
-    # serial PGS's order asymmetry rocks the column with a period of ~8 s (a slow, decaying
-    # rocking mode); at 4 iterations the soft column is an inverted pendulum and falls
-    ("stack_20", "pgs"): "the top sways up to 30 mm at 15 iterations (period ~8 s), 0.62 m at 4",
+    # serial PGS's sway grows at 2 and 4 iterations until the column falls (tests/test_solver_robustness.py)
+    # and stays at ~2 cm at 8-30
+    ("stack_20", "pgs"): "the top sways up to 22 mm at 15 iterations, 0.72 m at 4 (criterion 10 mm)",
 }
 
 
 def _known(case: str, solver: str, iterations: int):
-    for key in ((case, "*"), (case, solver), (case, f"{solver}@{iterations}")):
+    for key in ((case, "*"), (case, f"*@{iterations}"), (case, solver), (case, f"{solver}@{iterations}")):
         if key in KNOWN_FAILURES:
             return KNOWN_FAILURES[key]
     return None

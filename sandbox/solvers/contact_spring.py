@@ -7,7 +7,8 @@ bias ``b = rate x penetration``, ``rate = omega / (2 zeta + h omega)`` and compl
 ``gamma = K / c`` (K the row's unsplit unit response). A contact carrying a force F
 deflects ``F K / omega^2`` at rest.
 
-Three things set a row's omega, in this order:
+Three things set a row's omega, in this order (and a fourth, the preload, carries what the
+third leaves of the load):
 
 1. ``Settings.contact_hertz``, the softness asked for (capped at a quarter of the substep
    rate, as Box2D does);
@@ -35,7 +36,23 @@ i.e. while ``(h omega)^2 < S K / K~`` to first order, whatever zeta is. Measured
 splitting alike (mass splitting at 4, 8 and 15 iterations, PGS at 2, 4 and 8).
 The same inequality bounds every stable row's static deflection from below:
 ``F K / omega^2 >= F K~ h^2 / (S kappa^2)``. A schedule that divides by a larger K~ (mass
-splitting) sags more at the same substep; few iterations sag, they do not fly.
+splitting) would sag more at the same substep (the 210-box pyramid's top sank 0.32 m with
+mass splitting at 4 iterations), hence the preload.
+
+The preload: what a capped spring cannot hold within ``contact_deflection`` x size, the row
+carries rigidly. It solves ``J v + b + gamma max(lambda - P, 0) >= 0``: impulse up to the
+preload P is a rigid row's, only the impulse beyond it meets the compliance. P is the
+point's load beyond the spring's force at that deflection, ``F_slow - omega^2 d / K``, per
+substep, with ``F_slow`` the support force averaged more slowly (``contact_preload_lag``).
+The dynamics keep the capped spring (the update of an impulse beyond P is the soft row's, so
+the stability limit still holds); the statics do not sag by it: at rest every loaded row sits
+at the deflection, a few millimetres. P follows a slow average because it integrates what the
+spring carries, and an integrator faster than the structure it holds makes it bounce: with the
+spring's 0.25 s average the 1:1000 heavy-on-light column rocked by 0.3 m at 15 iterations
+(docs/method-notes.md), so the average follows no faster than the body bounces on its support
+springs, divided by ``contact_preload_lag``. It reads the body's support
+shared equally among its support points, never the row's own impulse (the load-split
+argument above; a preload that followed each point's own warm start threw the pyramid apart).
 """
 
 import math
@@ -45,15 +62,16 @@ import taichi as ti
 from ..formulation import baumgarte_rate
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
- UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z) = range(18)
-PARAM_COUNT = 18
+ UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z, PRELOAD, PRELOAD_LAG) = range(20)
+PARAM_COUNT = 20
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
 deflection [1], the support average's blend per step [1], the step [s], the up
 direction (against gravity; zero without gravity), the gap gravity closes in one step
 from rest, |g| dt^2 [m], and the paper formulation's Baumgarte rate [1/s] (0: the soft step;
-formulation.py), the split's share kept for blocks not counted in n_b (Settings.idle_split), and
-gravity [m/s^2] (read by the iteration loop's fused launches, solvers/substep.py)."""
+formulation.py), the split's share kept for blocks not counted in n_b (Settings.idle_split),
+gravity [m/s^2] (read by the iteration loop's fused launches, solvers/substep.py), the preload's
+share [1] and its slower support average's blend per step [1]."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
@@ -82,6 +100,8 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity) -> list[floa
     values[BAUMGARTE_RATE] = baumgarte_rate(settings, dt)
     values[IDLE_SHARE] = settings.idle_split
     values[GRAVITY_X], values[GRAVITY_Y], values[GRAVITY_Z] = (float(x) for x in gravity)
+    values[PRELOAD] = settings.contact_preload
+    values[PRELOAD_LAG] = settings.contact_preload_lag
     return values
 
 
@@ -114,14 +134,22 @@ def spring(params: ti.template(), omega: ti.f32, k_true: ti.f32):
 
 
 @ti.func
-def row_spring(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, size: ti.f32):
-    """(bias rate [1/s], compliance gamma) of a normal row: the soft step's spring, or under the
-    paper formulation a rigid row (gamma 0) whose bias removes ``baumgarte`` of the depth per step."""
+def row_spring(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, slow_load: ti.f32,
+               size: ti.f32):
+    """(bias rate [1/s], compliance gamma, preload [N s]) of a normal row: the soft step's
+    spring with the preload that carries ``slow_load`` [N] beyond what the spring holds within
+    the deflection, or under the paper formulation a rigid row (gamma 0, no preload) whose bias
+    removes ``baumgarte`` of the depth per step."""
     rate = params[BAUMGARTE_RATE]
     gamma = 0.0
+    preload = 0.0
     if rate <= 0.0:
-        rate, gamma = spring(params, row_omega(params, k_true, k_split, load, size), k_true)
-    return rate, gamma
+        omega = row_omega(params, k_true, k_split, load, size)
+        rate, gamma = spring(params, omega, k_true)
+        if params[DEFLECTION] > 0.0:
+            held = omega * omega * params[DEFLECTION] * size / k_true  # [N] the spring's force at the deflection
+            preload = params[PRELOAD] * ti.max(slow_load - held, 0.0) / params[INV_H]
+    return rate, gamma, preload
 
 
 @ti.func
@@ -133,9 +161,10 @@ def support_push(params: ti.template(), push: ti.math.vec3) -> ti.f32:
 
 
 @ti.func
-def supported_load(params: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32) -> ti.f32:
-    """[N] The load of point q: the averaged support force of the body it holds up, shared
-    equally among that body's support points (0 when it holds up neither body)."""
+def supported_load(params: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32):
+    """([N], [N]) The load of point q: the averaged support force of the body it holds up,
+    shared equally among that body's support points (0 when it holds up neither body), over
+    ``contact_load_time`` (the spring's) and the slower one the preload reads."""
     n = c.normal[q]  # from body a to body b: b is pushed along +n
     upper = -1
     if support_push(params, n) > 0.0:
@@ -143,7 +172,10 @@ def supported_load(params: ti.template(), c: ti.template(), bodies: ti.template(
     elif support_push(params, -n) > 0.0:
         upper = c.body_a[q]
     load = 0.0
+    slow_load = 0.0
     if upper >= 0:
         if bodies.inv_mass[upper] > 0.0:
-            load = bodies.support[upper] / ti.max(ti.cast(bodies.support_points[upper], ti.f32), 1.0)
-    return load
+            points = ti.max(ti.cast(bodies.support_points[upper], ti.f32), 1.0)
+            load = bodies.support[upper] / points
+            slow_load = bodies.support_slow[upper] / points
+    return load, slow_load

@@ -48,8 +48,8 @@ import taichi as ti
 from ..awake import body_id, body_total
 from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
-from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, RESTITUTION_THRESHOLD,
-                             STEP_DT, support_push)
+from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, PRELOAD_LAG,
+                             RESTITUTION_THRESHOLD, STEP_DT, support_push)
 from .rolling import rolling_impulse
 from .rows import ROLLING, point_impulse, solve_point
 from .split_scales import block_weights
@@ -211,14 +211,16 @@ def update_support_loops(s: ti.template(), c: ti.template(), rows: ti.template()
                          awake: ti.template(), kind: ti.template(), dispatch: ti.template()):
     """After a step: each dynamic body's support force [N] (the upward part of the normal
     impulses of the contacts that hold it up, over the last substep), averaged over
-    ``contact_load_time``, and its support point count: the load its contacts' springs
-    stiffen for next step (contact_spring.supported_load). Every schedule builds the
-    adjacency this walks, so the sum runs in a fixed order."""
+    ``contact_load_time`` and, for the preload, no faster than the body bounces on its support
+    springs (``contact_preload_lag``), and its support point count: the load its contacts'
+    springs stiffen for, and preload, next step (contact_spring.supported_load). Every
+    schedule builds the adjacency this walks, so the sum runs in a fixed order."""
     ti.loop_config(serialize=ti.static(dispatch.serial))
     for k in range(body_total(bodies, awake)):
         i = body_id(awake, k)
         if bodies.inv_mass[i] > 0.0:
             force = 0.0
+            stiffness = 0.0
             points = 0
             for e in range(s.adj_start[i], s.adj_start[i + 1]):
                 slot = s.adj[e]
@@ -228,8 +230,15 @@ def update_support_loops(s: ti.template(), c: ti.template(), rows: ti.template()
                     lift = support_push(rows.params, side * c.normal[q])
                     if lift > 0.0:
                         force += ti.max(rows.lam[q][0], 0.0) * rows.params[INV_H] * lift
+                        if rows.gamma[q] > 0.0:
+                            stiffness += rows.rate[q] * rows.params[INV_H] / rows.gamma[q] * lift  # omega^2 / K
                         points += 1
-            bodies.support[i] += rows.params[LOAD_BLEND] * (force - bodies.support[i])
+            blend = rows.params[LOAD_BLEND]
+            bodies.support[i] += blend * (force - bodies.support[i])
+            if force > 0.0:  # no faster than the body bounces on its support springs
+                bounce = ti.sqrt(stiffness * rows.params[GRAVITY_REACH] / (force * rows.params[STEP_DT] ** 2))
+                blend = ti.min(blend, bounce * rows.params[STEP_DT] / rows.params[PRELOAD_LAG])
+            bodies.support_slow[i] += blend * (force - bodies.support_slow[i])
             bodies.support_points[i] = points
 
 

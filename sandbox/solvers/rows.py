@@ -20,7 +20,9 @@ regularised problem ``0 <= lambda  _|_  J u + b + gamma lambda >= 0``, bias ``b`
 rate x penetration, compliance ``gamma = K / c`` from the *unsplit* response K. A
 schedule with split response K~ updates ``dl = -(J u + b + gamma lambda) /
 (K~ + gamma)``, which has the same fixed point as the unsplit row: softness is
-physics, and mass splitting must not change it. Gaps (s > 0) are speculative
+physics, and mass splitting must not change it. A loaded row is preloaded (contact_spring.py):
+its impulse up to the preload P meets no compliance, ``J u + b + gamma max(lambda - P, 0) >= 0``,
+so a tall pile need not sag by its capped spring's measure. Gaps (s > 0) are speculative
 targets s / h; in the biased sweep they keep the spring's compliance, as Rapier's soft
 rows do, so that a row's update is continuous where its gap closes (the earlier rows
 stepped gaps with the soft denominator but without the compliance term, an update of
@@ -82,6 +84,7 @@ class Rows:
         self.inv_k_soft = ti.field(ti.f32, c)  # 1 / (K~_n + gamma) of the soft normal row
         self.rate = ti.field(ti.f32, c)  # [1/s] the normal row's bias rate (contact_spring.py)
         self.gamma = ti.field(ti.f32, c)  # the normal row's compliance gamma = K / c
+        self.preload = ti.field(ti.f32, c)  # [N s] impulse per substep the normal row carries rigidly (contact_spring.py)
         self.lam_roll = ti.Vector.field(3, ti.f32, c)  # [N m s] torsional (about n) and rolling (t1, t2) impulses
         # with rolling friction only (respond_row): s I^-1 of each body, 1 / K~ of the angular rows (n, t1, t2)
         self.roll_resp_a = ti.Matrix.field(3, 3, ti.f32, c)
@@ -243,9 +246,11 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     rows.lin_b[q] = bodies.inv_mass[b] * sb
     k = sa * rows.k_a[q] + sb * rows.k_b[q]
     k_true = rows.k_a[q][0] + rows.k_b[q][0]
-    rate, gamma = row_spring(rows.params, k_true, k[0], supported_load(rows.params, c, bodies, q), c.size[q])
+    load, slow_load = supported_load(rows.params, c, bodies, q)
+    rate, gamma, preload = row_spring(rows.params, k_true, k[0], load, slow_load, c.size[q])
     rows.rate[q] = rate
     rows.gamma[q] = gamma
+    rows.preload[q] = preload
     rows.inv_k[q] = 1.0 / k
     rows.inv_k_soft[q] = 1.0 / (k[0] + gamma)
     if ti.static(friction & ROLLING):  # the angular rows' responses (rolling.solve_rolling)
@@ -338,11 +343,13 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
             rows.lam_bounce[q] = nb
     else:
         target, gamma = normal_target(rows, c, bodies, q, mode)
-        inv_kn = inv_k[0]
-        if ti.static(mode == BIASED):
-            inv_kn = rows.inv_k_soft[q]
         vn = (vb - va).dot(n) + wb.dot(_row(jb, 0)) - wa.dot(_row(ja, 0))
-        ln = ti.max(lam[0] - (vn + target + gamma * lam[0]) * inv_kn, 0.0)
+        ln = lam[0] - (vn + target) * inv_k[0]
+        if ti.static(mode == BIASED):
+            pre = rows.preload[q]
+            if ln > pre:  # compliance acts on the impulse beyond the preload only
+                ln = lam[0] - (vn + target + gamma * (lam[0] - pre)) * rows.inv_k_soft[q]
+        ln = ti.max(ln, 0.0)
         d = ln - lam[0]
         va -= ma * d * n
         wa -= _row(rows.resp_a[q], 0) * d
@@ -388,7 +395,8 @@ def point_impulse(rows: ti.template(), c: ti.template(), q: ti.i32) -> vec3:
 @ti.kernel
 def compute_residuals(rows: ti.template(), c: ti.template(), bodies: ti.template(), mode: ti.template()):
     """Per point squared natural-map residual of the velocity-level LCP (method.md M1/M2) of
-    the BIASED (soft) or RELAX (rigid) problem: w = n . v_rel + b + gamma lambda."""
+    the BIASED (soft) or RELAX (rigid) problem: w = n . v_rel + b + gamma max(lambda - P, 0)
+    (P the row's preload, contact_spring.py)."""
     for q in range(c.count[None]):
         a = c.body_a[q]
         b = c.body_b[q]
@@ -398,7 +406,7 @@ def compute_residuals(rows: ti.template(), c: ti.template(), bodies: ti.template
         k = rows.k_a[q] + rows.k_b[q]
         lam = rows.lam[q]
         target, gamma = normal_target(rows, c, bodies, q, mode, False)
-        w = dv.dot(c.normal[q]) + target + gamma * lam[0]
+        w = dv.dot(c.normal[q]) + target + gamma * ti.max(lam[0] - rows.preload[q], 0.0)
         rn = ti.min(w, (k[0] + gamma) * lam[0])
         # friction: distance of lambda_t from the projection of its gradient step onto the disk
         g1 = lam[1] - dv.dot(rows.t1[q]) / k[1]
