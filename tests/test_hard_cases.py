@@ -38,6 +38,12 @@ KNOWN_FAILURES = {
     ("leaning_planks", "mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 0.64 m)",
     ("leaning_planks", "block-mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 1.6 m)",
     ("projectile_200ms_thin_wall", "jacobi"): "no tunnelling, but the under-relaxed sphere rebounds at ~40 m/s",
+    # the plain stack stands at 4 iterations with mass splitting and Jacobi only because their sweeps keep a
+    # straight column straight: nudged, every solver lets it fall (P-Delta on springs the stability limit
+    # keeps soft, docs/method-notes.md)
+    ("nudged_stack_20", "*@4"): "a 1 mm/s nudge of the top box topples the column at 4 iterations with every solver "
+                                "(top 0.4-13 m)",
+    ("nudged_stack_20", "pgs"): "serial PGS sways the nudged column by 22 mm at 15 iterations (criterion 10 mm)",
     ("stack_20", "block-mass-splitting@4"): "the column topples at 4 iterations (peak 16 m/s)",
     ("stack_20", "pgs-colored@4"): "the column topples at 4 iterations",
     # serial PGS's sway grows at 2 and 4 iterations until the column falls (tests/test_solver_robustness.py)
