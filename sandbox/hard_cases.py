@@ -81,10 +81,14 @@ def _stack_drift(run: Run, top: int, tol: float, pen_tol: float):
     return ok, f"top drift up to {1e3 * drift:.1f} mm, late max pen {1e3 * pen:.1f} mm"
 
 
+def _column(n: int) -> dict:
+    """n unit boxes (box_0 at the bottom) on the ground, 60 Hz contacts."""
+    bodies = [_box([0, 0, 0.5 + i], [0.5, 0.5, 0.5], name=f"box_{i}") for i in range(n)]
+    return {"world": {"contact_hertz": 60.0}, "static": [_plane()], "body": bodies}
+
+
 def tall_stack(n=20) -> Case:
-    bodies = [_box([0, 0, 0.5 + i], [0.5, 0.5, 0.5]) for i in range(n)]
-    scene = {"world": {"contact_hertz": 60.0}, "static": [_plane()], "body": bodies}
-    return Case(f"stack_{n}", scene, 600, lambda r: _stack_drift(r, n - 1, 0.01, 0.01),
+    return Case(f"stack_{n}", _column(n), 600, lambda r: _stack_drift(r, n - 1, 0.01, 0.01),
                 f"{n} unit boxes, 60 Hz contacts, 10 s: top drift < 1 cm, penetration < 1 cm")
 
 
@@ -92,9 +96,8 @@ def nudged_stack(n=20, nudge=1.0) -> Case:
     """``tall_stack`` with its top box nudged sideways at 0.5 s by ``nudge`` N s (1 mm/s for the
     1000 kg box): a solver that keeps its sweep symmetric never moves a perfectly straight
     column sideways, so the plain stack cannot show whether the column would come back."""
-    bodies = [_box([0, 0, 0.5 + i], [0.5, 0.5, 0.5], name=f"box_{i}") for i in range(n)]
-    scene = {"world": {"contact_hertz": 60.0}, "static": [_plane()], "body": bodies,
-             "event": [{"time": 0.5, "kind": "impulse", "bodies": [f"box_{n - 1}"], "impulse": [nudge, 0.0, 0.0]}]}
+    scene = _column(n)
+    scene["event"] = [{"time": 0.5, "kind": "impulse", "bodies": [f"box_{n - 1}"], "impulse": [nudge, 0.0, 0.0]}]
     return Case(f"nudged_stack_{n}", scene, 600, lambda r: _stack_drift(r, n - 1, 0.01, 0.01),
                 f"the {n}-box stack, its top box nudged at 0.5 s by {nudge:g} N s (1 mm/s) along x, 10 s: "
                 "top drift < 1 cm, penetration < 1 cm")

@@ -52,20 +52,25 @@ PYRAMID_FAILURES = {
 }
 
 
+def _settle(world, steps: int):
+    """Step ``world`` ``steps`` times: (positions at the start, at the end, mean KE of the last 60 steps)."""
+    start = world.state()["position"]
+    energies = []
+    for _ in range(steps):
+        world.step(1)
+        energies.append(world.metrics()["kinetic_energy"])
+    return start, world.state()["position"], float(np.mean(energies[-60:]))
+
+
 @pytest.mark.parametrize("solver, iterations, steps", list(_combos(
     product(("mass-splitting", "block-mass-splitting"), (4, 8), (600, 1800)), PYRAMID_FAILURES)))
 def test_split_schedules_keep_the_pyramid_standing(solver, iterations, steps):
     """pyramid_20: after 600 steps (the issue's horizon) and still after 1800 (30 s, long
     enough for a slow instability to show) the top box is within 5 cm and the pyramid is at rest."""
     world = World(Scene.load(SCENES_DIR / "pyramid_20.toml"), solver=solver, iterations=iterations, arch="cpu")
-    start = world.state()["position"]
+    start, end, ke = _settle(world, steps)
     top = int(np.argmax(start[:, 2]))
-    energies = []
-    for _ in range(steps):
-        world.step(1)
-        energies.append(world.metrics()["kinetic_energy"])
-    moved = float(np.linalg.norm(world.state()["position"][top] - start[top]))
-    ke = float(np.mean(energies[-60:]))
+    moved = float(np.linalg.norm(end[top] - start[top]))
     assert moved < PYRAMID_TOP_TOLERANCE and ke < PYRAMID_RESTING_KE, f"top moved {moved:.3f} m, KE {ke:.3g} J"
 
 
@@ -76,15 +81,10 @@ def test_the_web_default_scene_stands_at_4_iterations_with_mass_splitting():
     (measured 2026-11-25: 22.8 mm, 5.6e-8 J; 121 mm before the preload)."""
     world = World(Scene.load(SCENES_DIR / "playground.toml"), solver="mass-splitting", iterations=4, arch="cpu")
     world.set_effects([e for e in world.effects if e != "sleeping"])
-    start = world.state()["position"]
+    start, end, ke = _settle(world, 1800)
     pyramid = [i for i in range(len(start)) if "'pyramid_" in world.body_name(i)]
     top = pyramid[int(np.argmax(start[pyramid, 2]))]
-    energies = []
-    for _ in range(1800):
-        world.step(1)
-        energies.append(world.metrics()["kinetic_energy"])
-    moved = float(np.linalg.norm(world.state()["position"][top] - start[top]))
-    ke = float(np.mean(energies[-60:]))
+    moved = float(np.linalg.norm(end[top] - start[top]))
     assert len(pyramid) == 78
     assert moved < PYRAMID_TOP_TOLERANCE and ke < PYRAMID_RESTING_KE, f"top moved {moved:.3f} m, KE {ke:.3g} J"
 
@@ -108,13 +108,8 @@ def test_the_20_box_stack_stays_standing_at_few_iterations(solver, iterations):
     """stack_20, 900 steps (15 s): no box leaves its column by more than 5 cm and the stack is at
     rest at the end; few iterations may sag, a statically stable stack must not fall."""
     world = World(Scene.load(SCENES_DIR / "stack_20.toml"), solver=solver, iterations=iterations, arch="cpu")
-    start = world.state()["position"]
-    energies = []
-    for _ in range(900):
-        world.step(1)
-        energies.append(world.metrics()["kinetic_energy"])
-    drift = float(np.linalg.norm((world.state()["position"] - start)[:, :2], axis=1).max())
-    ke = float(np.mean(energies[-60:]))
+    start, end, ke = _settle(world, 900)
+    drift = float(np.linalg.norm((end - start)[:, :2], axis=1).max())
     assert drift < PYRAMID_TOP_TOLERANCE and ke < PYRAMID_RESTING_KE, f"drift {drift:.3f} m, KE {ke:.3g} J"
 
 

@@ -50,9 +50,9 @@ at the deflection, a few millimetres. P follows a slow average because it integr
 spring carries, and an integrator faster than the structure it holds makes it bounce: with the
 spring's 0.25 s average the 1:1000 heavy-on-light column rocked by 0.3 m at 15 iterations
 (docs/method-notes.md), so the average follows no faster than the body bounces on its support
-springs, divided by ``contact_preload_lag``. It reads the body's support
-shared equally among its support points, never the row's own impulse (the load-split
-argument above; a preload that followed each point's own warm start threw the pyramid apart).
+springs, divided by ``contact_preload_lag``. It reads the body's support shared equally among
+its support points, never the row's own impulse (the load-split argument above; a preload that
+followed each point's own warm start threw the pyramid apart).
 """
 
 import math
@@ -71,7 +71,7 @@ direction (against gravity; zero without gravity), the gap gravity closes in one
 from rest, |g| dt^2 [m], and the paper formulation's Baumgarte rate [1/s] (0: the soft step;
 formulation.py), the split's share kept for blocks not counted in n_b (Settings.idle_split),
 gravity [m/s^2] (read by the iteration loop's fused launches, solvers/substep.py), the preload's
-share [1] and its slower support average's blend per step [1]."""
+share [1] and its lag [1] (Settings.contact_preload, contact_preload_lag)."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""

@@ -235,7 +235,7 @@ def update_support_loops(s: ti.template(), c: ti.template(), rows: ti.template()
                         points += 1
             blend = rows.params[LOAD_BLEND]
             bodies.support[i] += blend * (force - bodies.support[i])
-            if force > 0.0:  # no faster than the body bounces on its support springs
+            if force > 0.0:  # no faster than the body bounces on its support springs: sqrt(k |g| / force)
                 bounce = ti.sqrt(stiffness * rows.params[GRAVITY_REACH] / (force * rows.params[STEP_DT] ** 2))
                 blend = ti.min(blend, bounce * rows.params[STEP_DT] / rows.params[PRELOAD_LAG])
             bodies.support_slow[i] += blend * (force - bodies.support_slow[i])
