@@ -118,7 +118,7 @@ class Stepper:
         k = plan.substeps
         h_sub = h / k
         gravity = ti.math.vec3(*c.gravity)
-        fused = self.fused and not p.enabled  # the once-per-step stages in three launches (step_kernels.py)
+        fused = self.fused and not p.enabled  # the once-per-step stages in three launches, or two (step_kernels.py)
         if not fused:
             save_good_state(b.bodies, awake)
             b.errors.clear()
@@ -131,6 +131,23 @@ class Stepper:
 
             clear_bodies(b.impacts, b.bodies)
         bounce = c.effects.restitution
+        track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
+        loop = Loop(b, contact_switch(c.effects), s.warm_start > 0.0, track, gravity, h_sub, k, plan.biased, plan.relax,
+                    awake, motion_switch(c.effects))
+        staged = p.enabled or c.record_residuals or pause  # a timer per stage, a read per sweep
+        launch = "per-stage" if staged else c.schedule.launch(s, c.arch, loop)
+        if fused and launch == "one" and not (watch or bounce or c.schedule.info.needs_coloring):
+            # nothing for the host between set-up, solve and store: one launch, the same bits
+            upload_row_params(b.rows, row_params(s, h_sub, plan.biased, h, c.gravity))
+            blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
+            step_kernels.solve_step_in_order(b, blk, s.match_distance, s.warm_start / k, kind, mode, omega, scaled,
+                                             loop.friction, self.edits.dispatch, c.schedule.visit, loop.warm,
+                                             loop.track, awake, loop.motion, h_sub, k, plan.biased, plan.relax,
+                                             *rest_arguments(h, s))
+            self._check_errors(b, step_count)
+            if c.effects.sleeping:
+                after_step(b, h, s, labelled=True)
+            return
         with p.stage("prepare"):
             upload_row_params(b.rows, row_params(s, h_sub, plan.biased, h, c.gravity))
             if fused:
@@ -142,11 +159,6 @@ class Stepper:
                 prepare_rows(b.rows, b.contacts, b.bodies)
                 match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
                 c.schedule.prepare(b, s, step_count, contact_switch(c.effects))
-        track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
-        loop = Loop(b, contact_switch(c.effects), s.warm_start > 0.0, track, gravity, h_sub, k, plan.biased, plan.relax,
-                    awake, motion_switch(c.effects))
-        staged = p.enabled or c.record_residuals or pause  # a timer per stage, a read per sweep
-        launch = "per-stage" if staged else c.schedule.launch(s, c.arch, loop)
         if launch == "per-stage":
             yield from self._iterate_by_stage(c.schedule, loop, c.record_residuals, pause)
         else:

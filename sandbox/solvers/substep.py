@@ -77,14 +77,14 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
     return warm and schedule == BLOCKS
 
 
-@ti.kernel
-def iterate_in_order(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
-                     warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
-                     h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32):
-    """All ``iterations`` substeps of ``h`` in one launch, everything in order on one thread:
-    ``sweeps`` biased and ``relax`` relax sweeps each (formulation.sweep_plan). ``track``: each
-    substep's impulses are added to the step's (``rows.lam_step``). ``b``: the world's BufferSet
-    (one template argument instead of six: step_kernels.py says why)."""
+@ti.func
+def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
+                           warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
+                           h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32):
+    """All ``iterations`` substeps of ``h``, everything in order on one thread: ``sweeps`` biased
+    and ``relax`` relax sweeps each (formulation.sweep_plan). ``track``: each substep's impulses
+    are added to the step's (``rows.lam_step``). ``b``: the world's BufferSet (one template
+    argument instead of six: step_kernels.py says why)."""
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
     fold = ti.static(folds_warm_start(schedule, warm))
@@ -104,6 +104,14 @@ def iterate_in_order(b: ti.template(), kind: ti.template(), schedule: ti.templat
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
         if ti.static(track):
             add_step_impulses_loop(rows, c)
+
+
+@ti.kernel
+def iterate_in_order(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
+                     warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
+                     h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32):
+    """The iteration loop in one launch (``iterate_in_order_loops``)."""
+    iterate_in_order_loops(b, kind, schedule, friction, warm, track, awake, motion, h, iterations, sweeps, relax)
 
 
 @ti.kernel
