@@ -22,9 +22,10 @@ grid (``grid``) and mark touched islands (``note_touch``: ``asleep``, ``wake_mar
 import taichi as ti
 
 
-@ti.data_oriented
 class Everything:
-    """The ``awake`` argument of a world that does not sleep: every body, every dynamic shape."""
+    """The ``awake`` argument of a world that does not sleep: every body, every dynamic shape.
+    A plain class for the launch cost (dispatch.LoopDispatch says why); ``EVERY`` is its one
+    instance."""
 
     compact = False
 

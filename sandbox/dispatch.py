@@ -16,17 +16,18 @@ visits the same items and each writes only its own slots, so both dispatches giv
 bits (tests/test_dispatch.py). CUDA always runs them in parallel.
 """
 
-import taichi as ti
-
 SERIAL_BODY_LIMIT = 512
 """A CPU world with at most this many bodies (its buffers' capacity) runs its heavy loops on
 the launching thread."""
 
 
-@ti.data_oriented
 class LoopDispatch:
     """The ``dispatch`` template argument: ``serial`` is read at compile time by
-    ``ti.loop_config(serialize=ti.static(dispatch.serial))`` before each heavy loop."""
+    ``ti.loop_config(serialize=ti.static(dispatch.serial))`` before each heavy loop. A plain
+    class, not ``ti.data_oriented``: Taichi keys a launch on its template arguments in Python,
+    and every ``isinstance`` it tries on a data-oriented object goes through that decorator's
+    slow ``__getattribute__`` (~7 look-ups per argument per launch); the two instances live as
+    long as the module, so the strong reference Taichi then keeps costs nothing."""
 
     def __init__(self, serial: bool):
         self.serial = serial
