@@ -139,8 +139,8 @@ class Stepper:
         if fused and launch == "one" and not (watch or bounce or c.schedule.info.needs_coloring):
             # nothing for the host between set-up, solve and store: one launch, the same bits
             upload_row_params(b.rows, row_params(s, h_sub, plan.biased, h, c.gravity))
-            blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
-            step_kernels.solve_step_in_order(b, blk, s.match_distance, s.warm_start / k, kind, mode, omega, scaled,
+            _, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
+            step_kernels.solve_step_in_order(b, s.match_distance, s.warm_start / k, kind, mode, omega, scaled,
                                              loop.friction, self.edits.dispatch, c.schedule.visit, loop.warm,
                                              loop.track, awake, loop.motion, h_sub, k, plan.biased, plan.relax,
                                              *rest_arguments(h, s))

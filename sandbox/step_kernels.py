@@ -88,7 +88,7 @@ def finish_step(b: ti.template(), kind: ti.template(), substeps: ti.i32, awake: 
 
 
 @ti.kernel
-def solve_step_in_order(b: ti.template(), blk: ti.template(), match_distance: ti.f32, warm_factor: ti.f32,
+def solve_step_in_order(b: ti.template(), match_distance: ti.f32, warm_factor: ti.f32,
                         kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template(),
                         friction: ti.template(), dispatch: ti.template(), schedule: ti.template(),
                         warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
@@ -97,7 +97,9 @@ def solve_step_in_order(b: ti.template(), blk: ti.template(), match_distance: ti
     """``prepare_step``, the iteration loop on one thread (substep.iterate_in_order) and
     ``finish_step`` in one launch, for a small world whose step has nothing to do on the host
     in between (no colouring, restitution pass or impact watch): the same loops in the same
-    order, so the same bits, one launch instead of three (each ~0.1-0.3 ms of Python here)."""
-    prepare_step_loops(b, blk, match_distance, warm_factor, kind, mode, omega, split, friction, dispatch)
+    order, so the same bits, one launch instead of three (each ~0.1-0.3 ms of Python here). The
+    block scratch is ``b.blocks`` for every schedule (Schedule.adjacency_args), so it is not an
+    argument: each data-oriented argument costs the launch ~7 Python look-ups."""
+    prepare_step_loops(b, b.blocks, match_distance, warm_factor, kind, mode, omega, split, friction, dispatch)
     iterate_in_order_loops(b, kind, schedule, friction, warm, track, awake, motion, h_sub, substeps, sweeps, relax)
     finish_step_loops(b, kind, substeps, awake, h, lin, ang, rest_time, dispatch)
