@@ -37,6 +37,7 @@ from .dispatch import dispatch_for
 from .build import host_world, upload
 from .errors import CapacityError, SandboxError
 from .fracture import FractureError, check_arguments, fracture_body, piece_count
+from .host_counters import StepCounters
 from .scene import quat_to_matrix
 from .scene.spec import EventSpec, Scene
 from .settings import Settings
@@ -79,6 +80,7 @@ class Edits:
         self.buf = buffers.acquire(caps)
         self._finalizer = buffers.release_on_collect(self, self.buf)
         upload(self.host, self.buf, self.settings.contact_margin)
+        self.counters = StepCounters(self.buf)
 
     def close(self) -> None:
         """Give the device buffers back to the process pool (also done when collected)."""
@@ -89,16 +91,16 @@ class Edits:
     def grow_if_needed(self) -> bool:
         """After a broadphase overflow (or of a sleeping world's grid of sleeping shapes): move to
         a bigger buffer class, keeping the body state and the sleeping islands."""
-        from .bodies import restore_good_state
-
         b = self.buf
-        entries = int(b.bp.entry_total[None])
-        pairs = int(b.bp.pair_total[None])
+        counters = self.counters
+        entries, pairs = counters.entry_total(), counters.pair_total()
         sleepers_full = self.sleeping and b.sleep.grid_full
-        if entries <= b.bp.entry_capacity and pairs <= b.bp.pair_capacity and not sleepers_full:
+        if entries <= counters.entry_capacity and pairs <= counters.pair_capacity and not sleepers_full:
             return False
         if sleepers_full:
             entries = max(entries, 2 * b.caps.grid_entries)
+        from .bodies import restore_good_state
+
         restore_good_state(b.bodies)
         n = len(self.host.body_arrays["inv_mass"])
         for k, v in b.bodies.host_state().items():

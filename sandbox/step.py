@@ -41,12 +41,17 @@ import numpy as np
 import taichi as ti
 
 from . import step_kernels
-from .effects import CompiledEffects
-from .formulation import sweep_plan
-from .errors import CapacityError, SimulationError
+from .bodies import restore_good_state, save_good_state, update_world_inertia
 from .broadphase import speculation
-from .integrate import motion_switch
-from .solvers.rows import contact_switch
+from .effects import CompiledEffects
+from .errors import CapacityError, SimulationError
+from .formulation import sweep_plan
+from .integrate import check_velocities, motion_switch
+from .persistence import match_contacts, store_contacts
+from .sleep import after_step, rest_arguments, wake_touched
+from .solvers.contact_spring import row_params
+from .solvers.mass_splitting import update_support
+from .solvers.rows import contact_switch, prepare_rows, upload_row_params
 from .solvers.schedule import Loop, Schedule
 
 MAX_GROWTH_RETRIES = 6
@@ -90,6 +95,7 @@ class Stepper:
         self.profiler = profiler
         self.fused = True  # False: the once-per-step stages launch one by one (benchmarks compare)
         self.residual_history: list[float] = []
+        self._row_params_key = None
 
     def substep(self, c: Controls, h: float, watch: bool, first: bool, step_count: int) -> None:
         """One pass of the whole stage list with time step ``h`` [s]; ``watch``: breakable bodies'
@@ -105,21 +111,13 @@ class Stepper:
         the solve there); without, it yields nothing."""
         if c.effects.sleeping and self.edits.buf.sleep.idle:
             return
-        from .bodies import save_good_state, update_world_inertia
-        from .integrate import check_velocities
-        from .persistence import match_contacts, store_contacts
-        from .sleep import after_step, rest_arguments
-        from .solvers.contact_spring import row_params
-        from .solvers.rows import prepare_rows, upload_row_params
-
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
-        awake = self.edits.awake_set(c.effects.sleeping)
         plan = sweep_plan(s.formulation, c.iterations, s.sweeps)
         k = plan.substeps
         h_sub = h / k
-        gravity = ti.math.vec3(*c.gravity)
         fused = self.fused and not p.enabled  # the once-per-step stages in three launches, or two (step_kernels.py)
         if not fused:
+            awake = self.edits.awake_set(c.effects.sleeping)
             save_good_state(b.bodies, awake)
             b.errors.clear()
             update_world_inertia(b.bodies, awake)
@@ -132,33 +130,33 @@ class Stepper:
             clear_bodies(b.impacts, b.bodies)
         bounce = c.effects.restitution
         track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
-        loop = Loop(b, contact_switch(c.effects), s.warm_start > 0.0, track, gravity, h_sub, k, plan.biased, plan.relax,
-                    awake, motion_switch(c.effects))
         staged = p.enabled or c.record_residuals or pause  # a timer per stage, a read per sweep
-        launch = "per-stage" if staged else c.schedule.launch(s, c.arch, loop)
+        launch = "per-stage" if staged else c.schedule.launch(s, c.arch, b.caps.bodies, plan)
+        self._upload_row_params(b, s, h_sub, plan.biased, h, c.gravity)
+        friction = contact_switch(c.effects)
         if fused and launch == "one" and not (watch or bounce or c.schedule.info.needs_coloring):
             # nothing for the host between set-up, solve and store: one launch, the same bits
-            upload_row_params(b.rows, row_params(s, h_sub, plan.biased, h, c.gravity))
             _, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
             step_kernels.solve_step_in_order(b, s.match_distance, s.warm_start / k, kind, mode, omega, scaled,
-                                             loop.friction, self.edits.dispatch, c.schedule.visit, loop.warm,
-                                             loop.track, awake, loop.motion, h_sub, k, plan.biased, plan.relax,
+                                             friction, self.edits.dispatch, c.schedule.visit, s.warm_start > 0.0,
+                                             track, awake, motion_switch(c.effects), h_sub, k, plan.biased, plan.relax,
                                              *rest_arguments(h, s))
             self._check_errors(b, step_count)
             if c.effects.sleeping:
                 after_step(b, h, s, labelled=True)
             return
+        loop = Loop(b, friction, s.warm_start > 0.0, track, ti.math.vec3(*c.gravity), h_sub, k, plan.biased,
+                    plan.relax, awake, motion_switch(c.effects))
         with p.stage("prepare"):
-            upload_row_params(b.rows, row_params(s, h_sub, plan.biased, h, c.gravity))
             if fused:
                 blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
                 step_kernels.prepare_step(b, blk, s.match_distance, s.warm_start / k, kind, mode, omega, scaled,
-                                          contact_switch(c.effects), self.edits.dispatch)
+                                          friction, self.edits.dispatch)
                 c.schedule.color(b, step_count)
             else:
                 prepare_rows(b.rows, b.contacts, b.bodies)
                 match_contacts(b.history, b.contacts, b.rows, s.match_distance, s.warm_start / k)
-                c.schedule.prepare(b, s, step_count, contact_switch(c.effects))
+                c.schedule.prepare(b, s, step_count, friction)
         if launch == "per-stage":
             yield from self._iterate_by_stage(c.schedule, loop, c.record_residuals, pause)
         else:
@@ -170,12 +168,10 @@ class Stepper:
             reduce_manifolds(b.impacts, b.contacts, b.rows)
         with p.stage("relax"):
             if bounce:
-                c.schedule.restitution(b, awake, contact_switch(c.effects), s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
+                c.schedule.restitution(b, awake, friction, s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
             if fused:
                 step_kernels.finish_step(b, c.schedule.kind, k, awake, *rest_arguments(h, s), self.edits.dispatch)
             else:
-                from .solvers.mass_splitting import update_support
-
                 check_velocities(b.bodies, b.errors, awake)
                 update_support(b.blocks, b.contacts, b.rows, b.bodies, awake, c.schedule.kind, self.edits.dispatch)
                 store_contacts(b.history, b.contacts, b.rows, b.shapes, k, awake, self.edits.dispatch)
@@ -183,13 +179,19 @@ class Stepper:
         if c.effects.sleeping:
             after_step(b, h, s, labelled=fused)
 
+    def _upload_row_params(self, b, s, h_sub: float, sweeps: int, h: float, gravity) -> None:
+        """This step's row constants into ``b.rows`` (rows.upload_row_params), rebuilt only when
+        the buffers, the settings or the step's shape changed (~10 us of a 200 us small step)."""
+        key = (b, s, h_sub, sweeps, h, *gravity)
+        if key != self._row_params_key:
+            upload_row_params(b.rows, row_params(s, h_sub, sweeps, h, gravity))
+            self._row_params_key = key
+
     def _collide_growing(self, fused: bool, h: float, sleeping: bool):
         """Broadphase and narrowphase; an overflowing buffer is grown and the collision redone
         (a fused retry saves the restored, same, state again and redoes the inertias: same bits).
         In a sleeping world, a touched sleeping island is woken and the collision redone with
         it awake (sleep.wake_touched): each redo wakes at least one island, so it ends."""
-        from .sleep import wake_touched
-
         growths = 0
         while True:
             b, st = self.edits.buf, self.edits.settings
@@ -258,10 +260,9 @@ class Stepper:
 
     def _check_errors(self, b, step_count: int) -> None:
         """The step's error bits as a SimulationError, the world back at its last good state."""
-        flags = int(b.errors.flags[None])
+        flags = int(self.edits.counters.error_flags())
         if not flags:
             return
-        from .bodies import restore_good_state
         from .broadphase import MAX_SPAN_CELLS
         from .integrate import ERR_POSE, ERR_VELOCITY
         from .manifold_cache import clear_cache

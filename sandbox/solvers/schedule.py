@@ -153,19 +153,20 @@ class Schedule:
         return done
 
     # ------------------------------------------------------------------ the fused iteration loop
-    def launch(self, settings, arch: str, loop: Loop) -> str:
-        """Which launch runs the iteration loop (Settings.iteration_launch; "per-stage" is also
-        what a profiled world uses). All give bit-identical results."""
+    def launch(self, settings, arch: str, body_capacity: int, plan) -> str:
+        """Which launch runs the iteration loop of a world with buffers for ``body_capacity``
+        bodies and a step of ``plan`` (formulation.SweepPlan) (Settings.iteration_launch;
+        "per-stage" is also what a profiled world uses). All give bit-identical results."""
         launch = settings.iteration_launch
         if launch == "auto" and arch == "cpu":
-            launch = "one" if loop.buf.caps.bodies <= ONE_THREAD_BODY_LIMIT else "shared"
+            launch = "one" if body_capacity <= ONE_THREAD_BODY_LIMIT else "shared"
         elif launch == "auto":
             launch = "per-substep"
         if launch == "shared" and arch != "cpu":
             launch = "one"  # a GPU block cannot wait for another
         if launch not in self.info.launches:
             launch = _FALLBACK[launch]
-        if launch == "per-substep" and (loop.sweeps, loop.relax) != (1, 1):
+        if launch == "per-substep" and (plan.biased, plan.relax) != (1, 1):
             launch = "per-stage"  # a sweep count is not unrolled into the kernel
         return launch
 
