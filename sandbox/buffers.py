@@ -29,6 +29,7 @@ from .shapes import PolytopePool, ShapeTable
 from .solvers.mass_splitting import BlockScratch
 from .solvers.pgs import Coloring
 from .solvers.rows import Rows
+from .step_scalars import StepScalars
 
 
 def capacity_class(n: int, minimum: int = 64) -> int:
@@ -86,6 +87,7 @@ class BufferSet:
         self.coloring = Coloring(caps.pairs, caps.bodies)
         self.impacts = ImpactMonitor(point_capacity, caps.bodies)
         self.errors = ErrorFlags()
+        self.scalars = StepScalars()
         self.metrics = MetricBuffer()
         self.manifold_cache = ManifoldCache(caps.pairs, caps.shapes)
         self.islands = None  # islands.Islands, allocated on first use (sleep.islands_of)

@@ -48,11 +48,12 @@ from .errors import CapacityError, SimulationError
 from .formulation import sweep_plan
 from .integrate import check_velocities, motion_switch
 from .persistence import match_contacts, store_contacts
-from .sleep import after_step, rest_arguments, wake_touched
+from .sleep import after_step, wake_touched
 from .solvers.contact_spring import row_params
 from .solvers.mass_splitting import update_support
 from .solvers.rows import contact_switch, prepare_rows, upload_row_params
 from .solvers.schedule import Loop, Schedule
+from .step_scalars import step_scalar_values
 
 MAX_GROWTH_RETRIES = 6
 RESTITUTION_MAX_SWEEPS = 256
@@ -95,7 +96,7 @@ class Stepper:
         self.profiler = profiler
         self.fused = True  # False: the once-per-step stages launch one by one (benchmarks compare)
         self.residual_history: list[float] = []
-        self._row_params_key = None
+        self._constants_key = None
 
     def substep(self, c: Controls, h: float, watch: bool, first: bool, step_count: int) -> None:
         """One pass of the whole stage list with time step ``h`` [s]; ``watch``: breakable bodies'
@@ -122,7 +123,7 @@ class Stepper:
             b.errors.clear()
             update_world_inertia(b.bodies, awake)
         self.residual_history = []
-        b = self._collide_growing(fused, h, c.effects.sleeping)
+        b = self._collide_growing(fused, h, c, plan)
         awake = self.edits.awake_set(c.effects.sleeping)  # the buffers may have grown
         if watch and first:
             from .impact import clear_bodies
@@ -132,15 +133,12 @@ class Stepper:
         track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
         staged = p.enabled or c.record_residuals or pause  # a timer per stage, a read per sweep
         launch = "per-stage" if staged else c.schedule.launch(s, c.arch, b.caps.bodies, plan)
-        self._upload_row_params(b, s, h_sub, plan.biased, h, c.gravity)
         friction = contact_switch(c.effects)
         if fused and launch == "one" and not (watch or bounce or c.schedule.info.needs_coloring):
             # nothing for the host between set-up, solve and store: one launch, the same bits
-            _, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
-            step_kernels.solve_step_in_order(b, s.match_distance, s.warm_start / k, kind, mode, omega, scaled,
-                                             friction, self.edits.dispatch, c.schedule.visit, s.warm_start > 0.0,
-                                             track, awake, motion_switch(c.effects), h_sub, k, plan.biased, plan.relax,
-                                             *rest_arguments(h, s))
+            sc = c.schedule
+            step_kernels.solve_step_in_order(b, sc.kind, sc.mode, sc.info.scales_masses, friction, self.edits.dispatch,
+                                             sc.visit, s.warm_start > 0.0, track, awake, motion_switch(c.effects))
             self._check_errors(b, step_count)
             if c.effects.sleeping:
                 after_step(b, h, s, labelled=True)
@@ -149,9 +147,8 @@ class Stepper:
                     plan.relax, awake, motion_switch(c.effects))
         with p.stage("prepare"):
             if fused:
-                blk, kind, mode, omega, scaled = c.schedule.adjacency_args(b, s)
-                step_kernels.prepare_step(b, blk, s.match_distance, s.warm_start / k, kind, mode, omega, scaled,
-                                          friction, self.edits.dispatch)
+                sc = c.schedule
+                step_kernels.prepare_step(b, sc.kind, sc.mode, sc.info.scales_masses, friction, self.edits.dispatch)
                 c.schedule.color(b, step_count)
             else:
                 prepare_rows(b.rows, b.contacts, b.bodies)
@@ -170,7 +167,7 @@ class Stepper:
             if bounce:
                 c.schedule.restitution(b, awake, friction, s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
             if fused:
-                step_kernels.finish_step(b, c.schedule.kind, k, awake, *rest_arguments(h, s), self.edits.dispatch)
+                step_kernels.finish_step(b, c.schedule.kind, awake, self.edits.dispatch)
             else:
                 check_velocities(b.bodies, b.errors, awake)
                 update_support(b.blocks, b.contacts, b.rows, b.bodies, awake, c.schedule.kind, self.edits.dispatch)
@@ -179,26 +176,30 @@ class Stepper:
         if c.effects.sleeping:
             after_step(b, h, s, labelled=fused)
 
-    def _upload_row_params(self, b, s, h_sub: float, sweeps: int, h: float, gravity) -> None:
-        """This step's row constants into ``b.rows`` (rows.upload_row_params), rebuilt only when
-        the buffers, the settings or the step's shape changed (~10 us of a 200 us small step)."""
-        key = (b, s, h_sub, sweeps, h, *gravity)
-        if key != self._row_params_key:
-            upload_row_params(b.rows, row_params(s, h_sub, sweeps, h, gravity))
-            self._row_params_key = key
+    def _write_step_constants(self, b, s, c: Controls, h: float, plan) -> None:
+        """This step's row constants (rows.upload_row_params) and the fused kernels' scalars
+        (step_scalars.py) into ``b``, worked out again only when the buffers, the settings, the
+        solver or the step's shape changed (~10 us of a 150 us small step)."""
+        key = (b, s, c.schedule, h, plan, *c.gravity)
+        if key != self._constants_key:
+            h_sub = h / plan.substeps
+            upload_row_params(b.rows, row_params(s, h_sub, plan.biased, h, c.gravity))
+            b.scalars.write(*step_scalar_values(s, c.schedule.relaxation(s), h, plan))
+            self._constants_key = key
 
-    def _collide_growing(self, fused: bool, h: float, sleeping: bool):
+    def _collide_growing(self, fused: bool, h: float, c: Controls, plan):
         """Broadphase and narrowphase; an overflowing buffer is grown and the collision redone
         (a fused retry saves the restored, same, state again and redoes the inertias: same bits).
         In a sleeping world, a touched sleeping island is woken and the collision redone with
         it awake (sleep.wake_touched): each redo wakes at least one island, so it ends."""
         growths = 0
+        sleeping = c.effects.sleeping
         while True:
             b, st = self.edits.buf, self.edits.settings
+            self._write_step_constants(b, st, c, h, plan)  # also into buffers just grown
             awake = self.edits.awake_set(sleeping)
             if fused:
-                step_kernels.begin_and_collide(b, st.contact_margin, st.slop, h, speculation(st),
-                                               *st.manifold_reuse_bounds(), self.edits.kinds, awake, self.edits.dispatch)
+                step_kernels.begin_and_collide(b, speculation(st), self.edits.kinds, awake, self.edits.dispatch)
             else:
                 self._collide(h, awake)
             if self.edits.grow_if_needed():

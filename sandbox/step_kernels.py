@@ -24,15 +24,18 @@ from .sleep import rest_and_label_loops
 from .solvers.mass_splitting import build_adjacency_loops, update_support_loops
 from .solvers.rows import prepare_row, respond_row
 from .solvers.substep import iterate_in_order_loops
+from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, RELAX_SWEEPS, RELAXATION, REUSE_D2, REUSE_SIN,
+                           SLEEP_ANGULAR, SLEEP_LINEAR, SLEEP_TIME, SLOP, STEP, SUBSTEP, SUBSTEPS, WARM_FACTOR)
 
 
 @ti.kernel
-def begin_and_collide(b: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32, speculative: ti.template(),
-                      reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(), awake: ti.template(),
+def begin_and_collide(b: ti.template(), speculative: ti.template(), kinds: ti.template(), awake: ti.template(),
                       dispatch: ti.template()):
     """Save the good state, clear the error flags, world inertias, broadphase, narrowphase
     (``awake``: of every body, or of a sleeping world's awake ones; awake.py; ``dispatch``: how
-    the heavy loops run, dispatch.py)."""
+    the heavy loops run, dispatch.py). Margin, slop, step and reuse bounds: ``b.scalars``."""
+    f = ti.static(b.scalars.f)
+    margin, slop, h = f[MARGIN], f[SLOP], f[STEP]
     b.errors.flags[None] = 0
     b.errors.body[None] = BIG
     save_good_state_loops(b.bodies, awake)
@@ -40,7 +43,7 @@ def begin_and_collide(b: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
     build_dynamic_grid_loops(b.bp, b.shapes, b.bodies, margin, h, speculative, b.errors, awake, dispatch)
     find_pairs_loops(b.bp, b.shapes, awake, dispatch)
     collide_pairs_loops(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, slop, h, speculative,
-                        reuse_d2, reuse_sin, kinds, awake, dispatch)
+                        f[REUSE_D2], f[REUSE_SIN], kinds, awake, dispatch)
 
 
 @ti.func
@@ -62,10 +65,12 @@ def prepare_step_loops(b: ti.template(), blk: ti.template(), match_distance: ti.
 
 
 @ti.kernel
-def prepare_step(b: ti.template(), blk: ti.template(), match_distance: ti.f32, warm_factor: ti.f32,
-                 kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template(),
+def prepare_step(b: ti.template(), kind: ti.template(), mode: ti.template(), split: ti.template(),
                  friction: ti.template(), dispatch: ti.template()):
-    prepare_step_loops(b, blk, match_distance, warm_factor, kind, mode, omega, split, friction, dispatch)
+    """``prepare_step_loops`` with the block scratch ``b.blocks`` and the scalars of ``b.scalars``."""
+    f = ti.static(b.scalars.f)
+    prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], kind, mode, f[RELAXATION], split, friction,
+                       dispatch)
 
 
 @ti.func
@@ -82,24 +87,26 @@ def finish_step_loops(b: ti.template(), kind: ti.template(), substeps: ti.i32, a
 
 
 @ti.kernel
-def finish_step(b: ti.template(), kind: ti.template(), substeps: ti.i32, awake: ti.template(), h: ti.f32, lin: ti.f32,
-                ang: ti.f32, rest_time: ti.f32, dispatch: ti.template()):
-    finish_step_loops(b, kind, substeps, awake, h, lin, ang, rest_time, dispatch)
+def finish_step(b: ti.template(), kind: ti.template(), awake: ti.template(), dispatch: ti.template()):
+    """``finish_step_loops`` with the scalars of ``b.scalars``."""
+    f = ti.static(b.scalars.f)
+    finish_step_loops(b, kind, b.scalars.i[SUBSTEPS], awake, f[STEP], f[SLEEP_LINEAR], f[SLEEP_ANGULAR],
+                      f[SLEEP_TIME], dispatch)
 
 
 @ti.kernel
-def solve_step_in_order(b: ti.template(), match_distance: ti.f32, warm_factor: ti.f32,
-                        kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template(),
+def solve_step_in_order(b: ti.template(), kind: ti.template(), mode: ti.template(), split: ti.template(),
                         friction: ti.template(), dispatch: ti.template(), schedule: ti.template(),
-                        warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
-                        h_sub: ti.f32, substeps: ti.i32, sweeps: ti.i32, relax: ti.i32, h: ti.f32, lin: ti.f32,
-                        ang: ti.f32, rest_time: ti.f32):
+                        warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template()):
     """``prepare_step``, the iteration loop on one thread (substep.iterate_in_order) and
     ``finish_step`` in one launch, for a small world whose step has nothing to do on the host
     in between (no colouring, restitution pass or impact watch): the same loops in the same
-    order, so the same bits, one launch instead of three (each ~0.1-0.3 ms of Python here). The
-    block scratch is ``b.blocks`` for every schedule (Schedule.adjacency_args), so it is not an
-    argument: each data-oriented argument costs the launch ~7 Python look-ups."""
-    prepare_step_loops(b, b.blocks, match_distance, warm_factor, kind, mode, omega, split, friction, dispatch)
-    iterate_in_order_loops(b, kind, schedule, friction, warm, track, awake, motion, h_sub, substeps, sweeps, relax)
-    finish_step_loops(b, kind, substeps, awake, h, lin, ang, rest_time, dispatch)
+    order, so the same bits, one launch instead of three (each ~0.1-0.3 ms of Python here). Its
+    scalars are in ``b.scalars``, its block scratch is ``b.blocks`` (Schedule.adjacency_args):
+    each argument costs the launch Python, ~7 look-ups for a data-oriented one."""
+    f, n = ti.static(b.scalars.f, b.scalars.i)
+    prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], kind, mode, f[RELAXATION], split, friction,
+                       dispatch)
+    iterate_in_order_loops(b, kind, schedule, friction, warm, track, awake, motion, f[SUBSTEP], n[SUBSTEPS],
+                           n[BIASED_SWEEPS], n[RELAX_SWEEPS])
+    finish_step_loops(b, kind, n[SUBSTEPS], awake, f[STEP], f[SLEEP_LINEAR], f[SLEEP_ANGULAR], f[SLEEP_TIME], dispatch)

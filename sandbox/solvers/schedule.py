@@ -83,7 +83,8 @@ class Schedule:
 
     def adjacency_args(self, buf, settings) -> tuple:
         """(block scratch, kind, mode, omega, scaled responses): the schedule's arguments of
-        ``build_adjacency`` / ``prepare_response`` and of the fused ``step_kernels.prepare_step``."""
+        ``build_adjacency`` / ``prepare_response`` (the fused step kernels read the block scratch
+        as ``b.blocks`` and omega from ``b.scalars``, step_scalars.py)."""
         return buf.blocks, self.kind, self.mode, self.relaxation(settings), self.info.scales_masses
 
     def prepare(self, buf, settings, step: int, friction: int) -> None:
