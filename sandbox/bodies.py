@@ -26,6 +26,7 @@ import taichi as ti
 
 from .awake import EVERY, body_id, body_total
 from .backend import serialize_light_loops
+from .field_upload import write_rows
 from .math3d import quat_to_mat
 
 vec3 = ti.math.vec3
@@ -71,11 +72,7 @@ class Bodies:
         for name in ("damping", "rolling"):  # motion resistances: none unless given (scene.spec.RESISTANCE_KEYS)
             columns[name] = arrays.get(name, np.zeros((n, 2)))
         columns["pos_rem"] = (pos64 - pos64.astype(np.float32)) * (np.asarray(arrays["inv_mass"]) > 0)[:, None]
-        for name, value in columns.items():
-            field = getattr(self, name)
-            full = field.to_numpy()
-            full[:n] = value
-            field.from_numpy(full.astype(np.float32))
+        write_rows([(getattr(self, name), 0, np.asarray(value, np.float64)) for name, value in columns.items()])
         self.count[None] = n
         self.support.fill(0.0)  # a rebuilt world learns its loads again (a few steps)
         self.support_slow.fill(0.0)

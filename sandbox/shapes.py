@@ -21,6 +21,7 @@ each with a pose relative to the body's centre of mass.
 import numpy as np
 import taichi as ti
 
+from .field_upload import write_rows
 from .polytope import (  # noqa: F401  (re-exported: kinds and builders live with the host geometry)
     BOX, CAPSULE, HULL, KIND_NAMES, MAX_POLY_VERTS, PLANE, POLYTOPE_KINDS, SPHERE, TRIANGLE, GeometryError, Polytope,
     box_polytope, hull_polytope, triangle_polytope,
@@ -71,60 +72,55 @@ class PolytopePool:
         if not polytopes:
             return offsets
         vs, fs, ls, es = offsets
-        rows, verts, fn, fo, fls, flc, loops, ev, ef, cen, sides = [], [], [], [], [], [], [], [], [], [], []
+        rows, verts, fn, fo, flc, loops, ev, ef, cen = [], [], [], [], [], [], [], [], []
         for p in polytopes:
             rows.append((vs, len(p.vertices), fs, len(p.face_loops), es, len(p.edges)))
             verts.append(p.vertices)
             cen.append(p.centroid)
             fn.append(p.face_normals)
             fo.append(p.face_offsets)
-            for f, loop in enumerate(p.face_loops):
-                sides.append(_side_planes(p.vertices, p.face_normals[f], loop))
-                fls.append(ls)
+            for loop in p.face_loops:
                 flc.append(len(loop))
                 loops.append(np.asarray(loop) + vs)
-                ls += len(loop)
             ev.append(p.edges + vs)
             ef.append(p.edge_faces + fs)
             vs += len(p.vertices)
             fs += len(p.face_loops)
             es += len(p.edges)
         rows = np.asarray(rows, np.int32)
-        _write(self.vert_start, first, rows[:, 0])
-        _write(self.vert_count, first, rows[:, 1])
-        _write(self.face_start, first, rows[:, 2])
-        _write(self.face_count, first, rows[:, 3])
-        _write(self.edge_start, first, rows[:, 4])
-        _write(self.edge_count, first, rows[:, 5])
-        _write(self.centroid, first, np.asarray(cen, np.float32))
-        _write(self.vert, offsets[0], np.concatenate(verts).astype(np.float32))
-        _write(self.face_normal, offsets[1], np.concatenate(fn).astype(np.float32))
-        _write(self.face_offset, offsets[1], np.concatenate(fo).astype(np.float32))
-        _write(self.face_loop_start, offsets[1], np.asarray(fls, np.int32))
-        _write(self.face_loop_count, offsets[1], np.asarray(flc, np.int32))
-        _write(self.loop, offsets[2], np.concatenate(loops).astype(np.int32))
-        _write(self.side, offsets[2], np.concatenate(sides).astype(np.float32))
-        _write(self.edge_vert, offsets[3], np.concatenate(ev).astype(np.int32))
-        _write(self.edge_face, offsets[3], np.concatenate(ef).astype(np.int32))
+        flc = np.asarray(flc, np.int64)
+        fls = offsets[2] + np.concatenate(([0], np.cumsum(flc)[:-1]))
+        ls = offsets[2] + int(flc.sum())
+        all_verts, all_normals, loop = np.concatenate(verts), np.concatenate(fn), np.concatenate(loops)
+        write_rows([
+            (self.vert_start, first, rows[:, 0]), (self.vert_count, first, rows[:, 1]),
+            (self.face_start, first, rows[:, 2]), (self.face_count, first, rows[:, 3]),
+            (self.edge_start, first, rows[:, 4]), (self.edge_count, first, rows[:, 5]),
+            (self.centroid, first, np.asarray(cen)),
+            (self.vert, offsets[0], all_verts),
+            (self.face_normal, offsets[1], all_normals), (self.face_offset, offsets[1], np.concatenate(fo)),
+            (self.face_loop_start, offsets[1], fls), (self.face_loop_count, offsets[1], flc),
+            (self.loop, offsets[2], loop),
+            (self.side, offsets[2], _side_planes(all_verts, all_normals, loop - offsets[0], flc)),
+            (self.edge_vert, offsets[3], np.concatenate(ev)), (self.edge_face, offsets[3], np.concatenate(ef)),
+        ])
         self.count = first + len(polytopes)
         return (vs, fs, ls, es)
 
 
-def _side_planes(vertices: np.ndarray, normal: np.ndarray, loop) -> np.ndarray:
-    """(k, 4): unit outward normal and offset of the side plane through loop edge k -> k + 1
-    (loops are counter-clockwise seen from outside, so (v1 - v0) x n points out of the face)."""
-    v0 = vertices[np.asarray(loop)]
-    v1 = vertices[np.roll(np.asarray(loop), -1)]
-    s = np.cross(v1 - v0, normal)
+def _side_planes(vertices: np.ndarray, normals: np.ndarray, loop: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """(k, 4) for every loop entry k: unit outward normal and offset of the side plane through
+    its face's edge k -> k + 1 (loops are counter-clockwise seen from outside, so
+    (v1 - v0) x n points out of the face). ``loop``: the faces' loops one after another,
+    indices into ``vertices``; ``counts``: each face's loop length; ``normals``: one per face."""
+    face = np.repeat(np.arange(len(counts)), counts)
+    start = np.repeat(np.cumsum(counts) - counts, counts)
+    position = np.arange(len(loop))
+    following = start + (position - start + 1) % np.repeat(counts, counts)
+    v0, v1 = vertices[loop], vertices[loop[following]]
+    s = np.cross(v1 - v0, normals[face])
     s /= np.maximum(np.linalg.norm(s, axis=1, keepdims=True), 1.0e-30)
     return np.c_[s, (s * v0).sum(axis=1)]
-
-
-def _write(field, first: int, values: np.ndarray) -> None:
-    """Write rows ``first .. first+len(values)`` of a field, leaving the rest untouched."""
-    full = field.to_numpy()
-    full[first:first + len(values)] = values
-    field.from_numpy(full)
 
 
 @ti.data_oriented
@@ -165,12 +161,11 @@ class ShapeTable:
 
     def upload(self, arrays: dict[str, np.ndarray], planes: dict[str, np.ndarray], dynamic_ids: np.ndarray) -> None:
         n = len(arrays["kind"])
-        for name, values in arrays.items():
-            _write(getattr(self, name), 0, values)
+        columns = [(getattr(self, name), 0, values) for name, values in arrays.items()]
+        columns.append((self.dynamic_ids, 0, dynamic_ids))
+        columns += [(getattr(self, "plane_" + name), 0, planes[name])
+                    for name in ("normal", "offset", "body", "friction", "restitution")]
+        write_rows(columns)
         self.count[None] = n
-        _write(self.dynamic_ids, 0, dynamic_ids)
         self.dynamic_count[None] = len(dynamic_ids)
-        m = len(planes["normal"])
-        for name in ("normal", "offset", "body", "friction", "restitution"):
-            _write(getattr(self, "plane_" + name), 0, planes[name])
-        self.plane_count[None] = m
+        self.plane_count[None] = len(planes["normal"])
