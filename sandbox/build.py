@@ -22,7 +22,7 @@ from .scene.rotations import quat_to_matrix
 from .scene.spec import Scene
 from .settings import Settings
 from .shapes import (
-    BOX, CAPSULE, HULL, PLANE, SPHERE, TRIANGLE, PolytopePool, box_polytope, hull_polytope, triangle_polytope,
+    BOX, CAPSULE, HULL, PLANE, SPHERE, TRIANGLE, PolytopePool, box_polytope, hull_polytope, triangle_polytopes,
 )
 
 
@@ -144,16 +144,20 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
                 raise ValueError(f"unknown shape kind {sh.kind!r}")
             if not body.static:
                 dynamic_shapes.append(len(rows["kind"]) - 1)
-    for mesh in scene.meshes:
-        v = np.asarray(mesh.vertices, dtype=np.float64)
-        for tri in np.asarray(mesh.triangles):
-            p = v[tri]
-            c = p.mean(axis=0)
-            pid = add_poly(None, lambda p=p, c=c: triangle_polytope(*(p - c)))
-            lo, hi = p.min(axis=0) - c, p.max(axis=0) - c
-            add_shape(TRIANGLE, ground, c, np.array([1.0, 0, 0, 0]), 0.0, 0.0, pid,
-                      float(np.linalg.norm(p - c, axis=1).max()), mesh.friction, mesh.restitution,
-                      0.5 * (lo + hi), 0.5 * (hi - lo) + 1e-4)
+    for mesh in scene.meshes:  # every triangle at once: a terrain has ~18 000
+        p = np.asarray(mesh.vertices, dtype=np.float64)[np.asarray(mesh.triangles)]
+        c = p.mean(axis=1)
+        local = p - c[:, None, :]
+        m, first_poly = len(p), len(polys)
+        polys.extend(triangle_polytopes(local))
+        lo, hi = p.min(axis=1) - c, p.max(axis=1) - c
+        for key, values in (("kind", [TRIANGLE] * m), ("body", [ground] * m), ("local_pos", list(c)),
+                            ("local_rot", [np.array([1.0, 0, 0, 0])] * m), ("radius", [0.0] * m),
+                            ("half_height", [0.0] * m), ("poly", list(range(first_poly, first_poly + m))),
+                            ("bound", list(np.linalg.norm(local, axis=2).max(axis=1))),
+                            ("friction", [mesh.friction] * m), ("restitution", [mesh.restitution] * m),
+                            ("aabb_center", list(0.5 * (lo + hi))), ("aabb_half", list(0.5 * (hi - lo) + 1e-4))):
+            rows[key].extend(values)
     n_shapes = len(rows["kind"])
     arrays = {
         "kind": np.asarray(rows["kind"], np.int32),
@@ -217,12 +221,15 @@ def _static_aabbs(host: HostWorld, margin: float):
     a = host.shape_arrays
     lo = np.zeros((len(a["kind"]), 3))
     hi = np.zeros((len(a["kind"]), 3))
-    for i in host.static_ids:
-        b = a["body"][i]
-        r = quat_to_matrix(host.body_arrays["rot"][b]) @ quat_to_matrix(a["local_rot"][i])
-        c = host.body_arrays["pos"][b] + quat_to_matrix(host.body_arrays["rot"][b]) @ a["local_pos"][i] + r @ a["aabb_center"][i]
-        e = np.abs(r) @ a["aabb_half"][i] + margin
-        lo[i], hi[i] = c - e, c + e
+    ids = host.static_ids
+    if len(ids):  # all at once, by the same matrix products as one at a time
+        bodies = a["body"][ids]
+        body_rot = quat_to_matrix(host.body_arrays["rot"][bodies])
+        r = body_rot @ quat_to_matrix(a["local_rot"][ids])
+        c = (host.body_arrays["pos"][bodies] + (body_rot @ a["local_pos"][ids][..., None])[..., 0]
+             + (r @ a["aabb_center"][ids][..., None])[..., 0])
+        e = (np.abs(r) @ a["aabb_half"][ids][..., None])[..., 0] + margin
+        lo[ids], hi[ids] = c - e, c + e
     return lo, hi
 
 

@@ -133,19 +133,29 @@ def hull_polytope(points, *, coplanar_tol: float = 1e-6) -> Polytope:
 
 
 def triangle_polytope(a, b, c) -> Polytope:
-    v = np.asarray([a, b, c], dtype=np.float64)
-    n = np.cross(v[1] - v[0], v[2] - v[0])
-    area2 = np.linalg.norm(n)
-    if not np.isfinite(area2) or area2 <= 1e-12 * max(1.0, float(np.ptp(v, axis=0).max()) ** 2):
+    return triangle_polytopes(np.asarray([[a, b, c]], dtype=np.float64))[0]
+
+
+def triangle_polytopes(corners: np.ndarray) -> list[Polytope]:
+    """A two-sided triangle (faces n and -n) for each (3, 3) corner triple of ``corners``
+    (N, 3, 3), in array passes: a terrain's 18 000 triangles took ~1 s one at a time. The dot
+    products go through matmul, the product one-at-a-time ``@`` and ``norm`` used: the same
+    numbers (checked on the shipped terrains)."""
+    v = np.asarray(corners, dtype=np.float64)
+    if len(v) == 0:
+        return []
+    n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    area2 = np.sqrt((n[:, None, :] @ n[:, :, None])[:, 0, 0])
+    scale = np.maximum(1.0, np.ptp(v, axis=1).max(axis=1) ** 2)
+    if np.any(~np.isfinite(area2) | (area2 <= 1e-12 * scale)):
         raise GeometryError("degenerate triangle (zero area)")
-    n /= area2
+    n /= area2[:, None]
+    offsets = (v[:, 0][:, None, :] @ n[:, :, None])[:, 0, 0]
     loops = [np.array([0, 1, 2]), np.array([0, 2, 1])]
-    normals = np.array([n, -n])
-    offsets = np.array([v[0] @ n, -(v[0] @ n)])
     edges = np.array([[0, 1], [1, 2], [0, 2]])
     edge_faces = np.array([[0, 1], [0, 1], [0, 1]])
-    return Polytope(v, normals, offsets, loops, edges, edge_faces)
-
+    return [Polytope(v[i], np.array([n[i], -n[i]]), np.array([offsets[i], -offsets[i]]), loops, edges, edge_faces)
+            for i in range(len(v))]
 
 
 

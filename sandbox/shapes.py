@@ -24,7 +24,7 @@ import taichi as ti
 from .field_upload import write_rows
 from .polytope import (  # noqa: F401  (re-exported: kinds and builders live with the host geometry)
     BOX, CAPSULE, HULL, KIND_NAMES, MAX_POLY_VERTS, PLANE, POLYTOPE_KINDS, SPHERE, TRIANGLE, GeometryError, Polytope,
-    box_polytope, hull_polytope, triangle_polytope,
+    box_polytope, hull_polytope, triangle_polytope, triangle_polytopes,
 )
 
 
