@@ -67,9 +67,10 @@ def init(arch: str = "auto") -> str:
     os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
     import taichi as ti
 
-    from .source_positions import memoise_source_positions
+    from .source_positions import memoise_function_sources, memoise_source_positions
 
     memoise_source_positions()
+    memoise_function_sources()
 
     ti.init(
         arch=ti.cuda if wanted == "cuda" else ti.cpu,
