@@ -111,6 +111,19 @@ class Broadphase:
         self.static_entries.from_numpy(entries)
 
 
+def _covered_cells(ids: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every cell of each box lo[s] .. hi[s] (inclusive, (N, 3) integer corners), in the order
+    of ``ids`` and within a box x-major (the order of a per-box meshgrid, "ij"), with its owner
+    from ``ids``: integer array passes, ~18 000 terrain triangles in a few ms."""
+    dims = hi - lo + 1
+    counts = dims.prod(axis=1)
+    owners = np.repeat(ids, counts)
+    local = np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
+    d = np.repeat(dims, counts, axis=0)
+    offset = np.stack([local // (d[:, 1] * d[:, 2]), (local // d[:, 2]) % d[:, 1], local % d[:, 2]], axis=1)
+    return np.repeat(lo, counts, axis=0) + offset, owners
+
+
 def build_static_grid(aabb_min: np.ndarray, aabb_max: np.ndarray, static_ids: np.ndarray, min_cell: float,
                       hash_size: int | None = None) -> dict:
     """Hash grid of the static shapes, built once with numpy (statics never move).
@@ -125,13 +138,7 @@ def build_static_grid(aabb_min: np.ndarray, aabb_max: np.ndarray, static_ids: np
     cell = float(max(min_cell, np.median(ext)))
     lo = np.floor(aabb_min[static_ids] / cell).astype(np.int64)
     hi = np.floor(aabb_max[static_ids] / cell).astype(np.int64)
-    cells, owners = [], []
-    for sid, a, b in zip(static_ids, lo, hi):
-        g = np.stack(np.meshgrid(*[np.arange(a[k], b[k] + 1) for k in range(3)], indexing="ij"), -1).reshape(-1, 3)
-        cells.append(g)
-        owners.append(np.full(len(g), sid))
-    cells = np.concatenate(cells)
-    owners = np.concatenate(owners)
+    cells, owners = _covered_cells(np.asarray(static_ids), lo, hi)
     hs = hash_size or _pow2(2 * len(cells))
     c32 = cells.astype(np.int32)
     with np.errstate(over="ignore"):
