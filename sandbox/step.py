@@ -137,8 +137,9 @@ class Stepper:
         if fused and launch == "one" and not (watch or bounce or c.schedule.info.needs_coloring):
             # nothing for the host between set-up, solve and store: one launch, the same bits
             sc = c.schedule
-            step_kernels.solve_step_in_order(b, sc.kind, sc.mode, sc.info.scales_masses, friction, self.edits.dispatch,
-                                             sc.visit, s.warm_start > 0.0, track, awake, motion_switch(c.effects))
+            switches = step_kernels.solve_switches(sc.kind, sc.mode, sc.info.scales_masses, friction, sc.visit,
+                                                   s.warm_start > 0.0, track, motion_switch(c.effects))
+            step_kernels.solve_step_in_order(b, switches, awake, self.edits.dispatch)
             self._check_errors(b, step_count)
             if c.effects.sleeping:
                 after_step(b, h, s, labelled=True)

@@ -13,6 +13,8 @@ Taichi works out a launch's kernel instance from its template arguments in Pytho
 attribute look-ups per data-oriented argument, which came to a fifth of a small scene's step.
 """
 
+from dataclasses import dataclass
+
 import taichi as ti
 
 from .bodies import save_good_state_loops, update_world_inertia_loops
@@ -94,19 +96,47 @@ def finish_step(b: ti.template(), kind: ti.template(), awake: ti.template(), dis
                       f[SLEEP_TIME], dispatch)
 
 
+@dataclass(frozen=True)
+class SolveSwitches:
+    """The compile-time switches of ``solve_step_in_order`` as one template argument: Taichi
+    keys every launch on each template argument in Python (a few us apiece), and these change
+    only with the solver and the effects. ``kind``, ``mode``, ``split``: the schedule's block,
+    merge and scaled responses; ``friction``: rows.contact_switch; ``visit``: the sweep's
+    order; ``warm``, ``track``: warm start, summed impulses; ``motion``: integrate.motion_switch."""
+
+    kind: int
+    mode: int
+    split: bool
+    friction: int
+    visit: int
+    warm: bool
+    track: bool
+    motion: int
+
+
+_switches: dict = {}
+
+
+def solve_switches(*values) -> SolveSwitches:
+    """The one SolveSwitches of these values (a dictionary look-up, not a new object a step)."""
+    found = _switches.get(values)
+    if found is None:
+        found = _switches[values] = SolveSwitches(*values)
+    return found
+
+
 @ti.kernel
-def solve_step_in_order(b: ti.template(), kind: ti.template(), mode: ti.template(), split: ti.template(),
-                        friction: ti.template(), dispatch: ti.template(), schedule: ti.template(),
-                        warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template()):
+def solve_step_in_order(b: ti.template(), sw: ti.template(), awake: ti.template(), dispatch: ti.template()):
     """``prepare_step``, the iteration loop on one thread (substep.iterate_in_order) and
     ``finish_step`` in one launch, for a small world whose step has nothing to do on the host
     in between (no colouring, restitution pass or impact watch): the same loops in the same
     order, so the same bits, one launch instead of three (each ~0.1-0.3 ms of Python here). Its
-    scalars are in ``b.scalars``, its block scratch is ``b.blocks`` (Schedule.adjacency_args):
-    each argument costs the launch Python, ~7 look-ups for a data-oriented one."""
+    scalars are in ``b.scalars``, its block scratch is ``b.blocks`` (Schedule.adjacency_args),
+    its switches in ``sw`` (SolveSwitches): each argument costs the launch Python."""
     f, n = ti.static(b.scalars.f, b.scalars.i)
-    prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], kind, mode, f[RELAXATION], split, friction,
-                       dispatch)
-    iterate_in_order_loops(b, kind, schedule, friction, warm, track, awake, motion, f[SUBSTEP], n[SUBSTEPS],
-                           n[BIASED_SWEEPS], n[RELAX_SWEEPS])
-    finish_step_loops(b, kind, n[SUBSTEPS], awake, f[STEP], f[SLEEP_LINEAR], f[SLEEP_ANGULAR], f[SLEEP_TIME], dispatch)
+    prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], sw.kind, sw.mode, f[RELAXATION], sw.split,
+                       sw.friction, dispatch)
+    iterate_in_order_loops(b, sw.kind, sw.visit, sw.friction, sw.warm, sw.track, awake, sw.motion, f[SUBSTEP],
+                           n[SUBSTEPS], n[BIASED_SWEEPS], n[RELAX_SWEEPS])
+    finish_step_loops(b, sw.kind, n[SUBSTEPS], awake, f[STEP], f[SLEEP_LINEAR], f[SLEEP_ANGULAR], f[SLEEP_TIME],
+                      dispatch)
