@@ -213,8 +213,10 @@ def update_support_loops(s: ti.template(), c: ti.template(), rows: ti.template()
     impulses of the contacts that hold it up, over the last substep), averaged over
     ``contact_load_time`` and, for the preload, no faster than the body bounces on its support
     springs (``contact_preload_lag``), and its support point count: the load its contacts'
-    springs stiffen for, and preload, next step (contact_spring.supported_load). Every
-    schedule builds the adjacency this walks, so the sum runs in a fixed order."""
+    springs stiffen for, and preload, next step (contact_spring.supported_load). A point
+    counts when it touched at the step's start or carried load: one merely near (a 1 mm cube's
+    points 0.3 mm above the ground) took half its neighbours' preload (docs/method-notes.md,
+    "Limits"). Every schedule builds the adjacency this walks, so the sum runs in a fixed order."""
     ti.loop_config(serialize=ti.static(dispatch.serial))
     for k in range(body_total(bodies, awake)):
         i = body_id(awake, k)
@@ -232,7 +234,8 @@ def update_support_loops(s: ti.template(), c: ti.template(), rows: ti.template()
                         force += ti.max(rows.lam[q][0], 0.0) * rows.params[INV_H] * lift
                         if rows.gamma[q] > 0.0:
                             stiffness += rows.rate[q] * rows.params[INV_H] / rows.gamma[q] * lift  # omega^2 / K
-                        points += 1
+                        if c.sep[q] <= 0.0 or rows.lam[q][0] > 0.0:  # touching, or carried the body
+                            points += 1
             blend = rows.params[LOAD_BLEND]
             bodies.support[i] += blend * (force - bodies.support[i])
             if force > 0.0:  # no faster than the body bounces on its support springs: sqrt(k |g| / force)
