@@ -4,9 +4,9 @@ the candidate pair list, in expected O(n) and in a deterministic order.
 Dynamic shapes go into a hashed uniform grid rebuilt every step (count cells per
 shape, scan, write entries, count per bucket, scan, fill, then sort each bucket
 by shape id so that the order never depends on thread timing). Static shapes
-(mesh triangles, static bodies) sit in a second grid built once on the host,
-so a 8192-triangle terrain costs only the cells a body overlaps. Planes are
-tested against every dynamic shape (there are a handful).
+(mesh triangles, static bodies) sit in a second grid built once on the host
+(static_grid.py), so a 8192-triangle terrain costs only the cells a body overlaps.
+Planes are tested against every dynamic shape (there are a handful).
 
 Pairs are enumerated per dynamic shape ``i`` (partners ``j > i`` in the dynamic
 grid, then static shapes, then planes) in two passes, count then write, so each
@@ -25,6 +25,7 @@ from .backend import serialize_light_loops
 from .integrate import ERR_BOUNDS
 from .math3d import quat_rotate, quat_to_mat
 from .prefix_sum import Scanner, exclusive_scan, sort_range
+from .static_grid import hash_table_size
 
 vec3 = ti.math.vec3
 ivec3 = ti.math.ivec3
@@ -52,10 +53,6 @@ def cell_hash(c: ivec3, mask: ti.i32) -> ti.i32:
     return h & mask
 
 
-def _pow2(n: int) -> int:
-    return 1 << max(4, int(np.ceil(np.log2(max(2, n)))))
-
-
 @ti.data_oriented
 class Broadphase:
     def __init__(self, shape_capacity: int, entry_capacity: int, pair_capacity: int, static_hash_size: int,
@@ -63,7 +60,7 @@ class Broadphase:
         sc = max(1, shape_capacity)
         self.entry_capacity = max(16, entry_capacity)
         self.pair_capacity = max(16, pair_capacity)
-        self.hash_size = _pow2(self.entry_capacity)
+        self.hash_size = hash_table_size(self.entry_capacity)
         self.cell_size = ti.field(ti.f32, ())
         self.aabb_min = ti.Vector.field(3, ti.f32, sc)
         self.aabb_max = ti.Vector.field(3, ti.f32, sc)
@@ -99,7 +96,8 @@ class Broadphase:
         self.static_entries = ti.field(ti.i32, max(1, static_entry_capacity))
 
     def upload_static_grid(self, grid: dict) -> None:
-        """Install a grid from ``build_static_grid`` (its hash size must match this buffer's)."""
+        """Install a grid from ``static_grid.build_static_grid`` (its hash size must match this
+        buffer's)."""
         if grid["hash_size"] != self.static_hash_size:
             raise ValueError("static grid was built for another hash size")
         self.static_cell_size[None] = grid["cell_size"]
@@ -109,49 +107,6 @@ class Broadphase:
         entries = np.zeros(self.static_entries.shape[0], np.int32)
         entries[: len(grid["entries"])] = grid["entries"]
         self.static_entries.from_numpy(entries)
-
-
-def _covered_cells(ids: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Every cell of each box lo[s] .. hi[s] (inclusive, (N, 3) integer corners), in the order
-    of ``ids`` and within a box x-major (the order of a per-box meshgrid, "ij"), with its owner
-    from ``ids``: integer array passes, ~18 000 terrain triangles in a few ms."""
-    dims = hi - lo + 1
-    counts = dims.prod(axis=1)
-    owners = np.repeat(ids, counts)
-    local = np.arange(int(counts.sum()), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
-    d = np.repeat(dims, counts, axis=0)
-    offset = np.stack([local // (d[:, 1] * d[:, 2]), (local // d[:, 2]) % d[:, 1], local % d[:, 2]], axis=1)
-    return np.repeat(lo, counts, axis=0) + offset, owners
-
-
-def build_static_grid(aabb_min: np.ndarray, aabb_max: np.ndarray, static_ids: np.ndarray, min_cell: float,
-                      hash_size: int | None = None) -> dict:
-    """Hash grid of the static shapes, built once with numpy (statics never move).
-
-    ``hash_size`` (a power of two) may be given to fit a pooled buffer; by default
-    it is the next power of two above twice the number of entries."""
-    if len(static_ids) == 0:
-        hs = hash_size or 16
-        return {"hash_size": hs, "cell_size": 1.0, "bucket_start": np.zeros(hs + 1, np.int64),
-                "entries": np.zeros(0, np.int64), "lo": (1.0, 1.0, 1.0), "hi": (0.0, 0.0, 0.0)}
-    ext = (aabb_max[static_ids] - aabb_min[static_ids]).max(axis=1)
-    cell = float(max(min_cell, np.median(ext)))
-    lo = np.floor(aabb_min[static_ids] / cell).astype(np.int64)
-    hi = np.floor(aabb_max[static_ids] / cell).astype(np.int64)
-    cells, owners = _covered_cells(np.asarray(static_ids), lo, hi)
-    hs = hash_size or _pow2(2 * len(cells))
-    c32 = cells.astype(np.int32)
-    with np.errstate(over="ignore"):
-        h = (c32[:, 0] * np.int32(73856093)) ^ (c32[:, 1] * np.int32(19349663)) ^ (c32[:, 2] * np.int32(83492791))
-    bucket = (h & np.int32(hs - 1)).astype(np.int64)
-    order = np.lexsort((owners, bucket))
-    counts = np.bincount(bucket, minlength=hs)
-    start = np.zeros(hs + 1, np.int64)
-    start[1:] = np.cumsum(counts)
-    return {"hash_size": hs, "cell_size": cell, "bucket_start": start, "entries": owners[order],
-            # padded by a cell: the device's float32 AABBs of the statics may round past these
-            "lo": tuple(float(x) - cell for x in aabb_min[static_ids].min(axis=0)),
-            "hi": tuple(float(x) + cell for x in aabb_max[static_ids].max(axis=0))}
 
 
 @ti.func

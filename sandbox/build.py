@@ -14,16 +14,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .broadphase import build_static_grid, compute_all_aabbs
+from .broadphase import compute_all_aabbs
 from .buffers import BufferSet, Capacities
 from .manifold_cache import clear_cache
 from .persistence import clear_history
-from .scene.rotations import quat_to_matrix
 from .scene.spec import Scene
 from .settings import Settings
 from .shapes import (
     BOX, CAPSULE, HULL, PLANE, SPHERE, TRIANGLE, PolytopePool, box_polytope, hull_polytope, triangle_polytopes,
 )
+from .static_grid import build_static_grid, static_aabbs, static_entry_count
 
 
 RESERVE_HULL = (24, 14, 72, 36)
@@ -188,10 +188,9 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
     cell = float(max(1.5 * np.median(diam), 1e-3))
     is_static_body = np.array([b.static for b in scene.bodies] + [True])
     static_ids = np.flatnonzero(is_static_body[arrays["body"]]) if n_shapes else np.zeros(0, np.int64)
-    # entries of the static grid: cells each static AABB covers, counted like build_static_grid does
     kinds = tuple(sorted(set(int(k) for k in arrays["kind"]) | ({PLANE} if len(scene.planes) else set())))
     host = HostWorld(body_arrays, arrays, planes, dyn, static_ids, polys, kinds, cell, 0, len(dyn))
-    host.static_entries = _static_entry_count(host, margin)
+    host.static_entries = static_entry_count(host, margin)
     host.has_restitution = bool(np.any(arrays["restitution"] > 0) or np.any(planes["restitution"] > 0))
     host.has_friction = bool(np.any(arrays["friction"] > 0) or np.any(planes["friction"] > 0))
     host.has_gyroscopic = any_anisotropic(inertia[inv_mass > 0])
@@ -215,47 +214,13 @@ def any_anisotropic(inertias: np.ndarray) -> bool:
     return bool(np.any(deviation > ISOTROPY_TOLERANCE * np.abs(mean)))
 
 
-
-def _static_aabbs(host: HostWorld, margin: float):
-    """World AABBs of the static shapes on the host (statics never move)."""
-    a = host.shape_arrays
-    lo = np.zeros((len(a["kind"]), 3))
-    hi = np.zeros((len(a["kind"]), 3))
-    ids = host.static_ids
-    if len(ids):  # all at once, by the same matrix products as one at a time
-        bodies = a["body"][ids]
-        body_rot = quat_to_matrix(host.body_arrays["rot"][bodies])
-        r = body_rot @ quat_to_matrix(a["local_rot"][ids])
-        c = (host.body_arrays["pos"][bodies] + (body_rot @ a["local_pos"][ids][..., None])[..., 0]
-             + (r @ a["aabb_center"][ids][..., None])[..., 0])
-        e = (np.abs(r) @ a["aabb_half"][ids][..., None])[..., 0] + margin
-        lo[ids], hi[ids] = c - e, c + e
-    return lo, hi
-
-
-def _static_entry_count(host: HostWorld, margin: float) -> int:
-    if len(host.static_ids) == 0:
-        return 0
-    lo, hi = _static_aabbs(host, margin)
-    cell = _static_cell(host, lo, hi)
-    a = np.floor(lo[host.static_ids] / cell)
-    b = np.floor(hi[host.static_ids] / cell)
-    return int(np.prod(b - a + 1, axis=1).sum())
-
-
-def _static_cell(host: HostWorld, lo, hi) -> float:
-    ext = (hi[host.static_ids] - lo[host.static_ids]).max(axis=1)
-    return float(max(host.cell_size, np.median(ext)))
-
-
 def upload(host: HostWorld, buffers: BufferSet, margin: float) -> None:
     """Fill a pooled BufferSet with a world's data and reset its per-step scratch."""
     buffers.bodies.upload(host.body_arrays)
     buffers.shapes.upload(host.shape_arrays, host.plane_arrays, host.dynamic_ids)
     buffers.pool.upload(host.polytopes)
-    lo, hi = _static_aabbs(host, margin)
-    cell = _static_cell(host, lo, hi) if len(host.static_ids) else host.cell_size
-    grid = build_static_grid(lo, hi, host.static_ids, cell, hash_size=buffers.bp.static_hash_size)
+    lo, hi = static_aabbs(host, margin)
+    grid = build_static_grid(lo, hi, host.static_ids, host.cell_size, hash_size=buffers.bp.static_hash_size)
     buffers.bp.upload_static_grid(grid)
     buffers.bp.cell_size[None] = host.cell_size
     compute_all_aabbs(buffers.bp, buffers.shapes, buffers.bodies, margin)
