@@ -133,6 +133,7 @@ def hull_polytope(points, *, coplanar_tol: float = 1e-6) -> Polytope:
 
 
 def triangle_polytope(a, b, c) -> Polytope:
+    """The two-sided triangle with corners a, b, c (``triangle_polytopes`` of one)."""
     return triangle_polytopes(np.asarray([[a, b, c]], dtype=np.float64))[0]
 
 

@@ -114,8 +114,6 @@ class Stepper:
             return
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
         plan = sweep_plan(s.formulation, c.iterations, s.sweeps)
-        k = plan.substeps
-        h_sub = h / k
         fused = self.fused and not p.enabled  # the once-per-step stages in three launches, or two (step_kernels.py)
         if not fused:
             awake = self.edits.awake_set(c.effects.sleeping)
@@ -140,11 +138,21 @@ class Stepper:
             switches = step_kernels.solve_switches(sc.kind, sc.mode, sc.info.scales_masses, friction, sc.visit,
                                                    s.warm_start > 0.0, track, motion_switch(c.effects))
             step_kernels.solve_step_in_order(b, switches, awake, self.edits.dispatch)
-            self._check_errors(b, step_count)
-            if c.effects.sleeping:
-                after_step(b, h, s, labelled=True)
-            return
-        loop = Loop(b, friction, s.warm_start > 0.0, track, ti.math.vec3(*c.gravity), h_sub, k, plan.biased,
+        else:
+            yield from self._solve_in_launches(c, b, awake, plan, h, launch, fused, watch, track, step_count, pause)
+        self._check_errors(b, step_count)
+        if c.effects.sleeping:
+            after_step(b, h, s, labelled=fused)
+
+    def _solve_in_launches(self, c: Controls, b, awake, plan, h: float, launch: str, fused: bool, watch: bool,
+                           track: bool, step_count: int, pause: bool):
+        """Set-up, iteration loop and store as separate launches: the fused set-up and store
+        around one of the schedule's loop launches, or every stage timed (profiler, residual
+        record) or stopped after every sweep (``pause``: a generator, as ``substep_sweeps``)."""
+        s, p = self.edits.settings, self.profiler
+        k = plan.substeps
+        friction = contact_switch(c.effects)
+        loop = Loop(b, friction, s.warm_start > 0.0, track, ti.math.vec3(*c.gravity), h / k, k, plan.biased,
                     plan.relax, awake, motion_switch(c.effects))
         with p.stage("prepare"):
             if fused:
@@ -165,7 +173,7 @@ class Stepper:
 
             reduce_manifolds(b.impacts, b.contacts, b.rows)
         with p.stage("relax"):
-            if bounce:
+            if c.effects.restitution:
                 c.schedule.restitution(b, awake, friction, s.restitution_tolerance, RESTITUTION_MAX_SWEEPS)
             if fused:
                 step_kernels.finish_step(b, c.schedule.kind, awake, self.edits.dispatch)
@@ -173,9 +181,6 @@ class Stepper:
                 check_velocities(b.bodies, b.errors, awake)
                 update_support(b.blocks, b.contacts, b.rows, b.bodies, awake, c.schedule.kind, self.edits.dispatch)
                 store_contacts(b.history, b.contacts, b.rows, b.shapes, k, awake, self.edits.dispatch)
-        self._check_errors(b, step_count)
-        if c.effects.sleeping:
-            after_step(b, h, s, labelled=fused)
 
     def _write_step_constants(self, b, s, c: Controls, h: float, plan) -> None:
         """This step's row constants (rows.upload_row_params) and the fused kernels' scalars
