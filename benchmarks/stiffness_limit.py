@@ -2,6 +2,7 @@
 "Why low iteration counts blew up").
 
     python benchmarks/stiffness_limit.py model                    # seconds: numpy only
+    python benchmarks/stiffness_limit.py buckling [--boxes 20]    # seconds: numpy only
     python benchmarks/stiffness_limit.py scan [pyramid_20] [--steps 300]
             [--solvers pgs,mass-splitting,block-mass-splitting] [--iterations 1,2,4,8,15,30]
             [--hertz 5,10,15,20,30,45,60]                         # ~30 min on 2 cores
@@ -12,6 +13,17 @@ of one step (positions, velocities, accumulated impulses); prints its spectral r
 for serial PGS and per-point mass splitting at 30 Hz, without and with the per-row
 stability limit (contact_spring.py). Above 1 a resting column gains energy every step.
 The growing mode is the column's slowest (quarter-wave) one.
+
+``buckling``: why a tall column falls at few iterations although no row gains energy. The
+limit caps each row's spring, and a column of boxes on capped springs is an elastic column:
+its faces turn under the weight above them (P-Delta) and the springs at a face's edges turn
+them back. Rigid boxes with unit faces, four points per face, each point a spring of
+``m_eff omega^2`` (m_eff = 1 / K, the row's effective mass): a face resists turning with
+``f m_eff omega^2 (0.5 m)^2 x 4``, f = 1 for four springs about the face's middle and f ~ 2
+when the preload (contact_spring.py) holds the unloading edge rigid and the face turns about
+it. The smallest eigenvalue of stiffness minus the weight's geometric stiffness gives the
+column's critical omega for both; each schedule's cap (its K~ / K for an interior box of the
+column) against it predicts which iteration counts let the column stand.
 
 ``scan``: the engine itself, with the limit turned off (``contact_stiffness_limit = 0``):
 for each schedule, iteration count and ``contact_hertz``, the mean kinetic energy of the
@@ -116,6 +128,60 @@ def run_model(args) -> None:
             print(f"{name:28s}" + "".join(f"{r:12.4f}" for r in row), flush=True)
 
 
+# ----------------------------------------------------------------------------- buckling
+def column_is_stiff_enough(boxes: int, omega: float, turn_factor: float, mass: float = 1000.0,
+                           gravity: float = 9.81) -> bool:
+    """Whether a column of unit boxes whose every contact point is a spring of ``omega`` holds
+    its weight without buckling (module docstring, ``buckling``)."""
+    point_k = [mass / 4.0 * omega**2] + [mass / 8.0 * omega**2] * (boxes - 1)  # ground row K = 4/m, others 8/m
+    face_k = [turn_factor * 4.0 * 0.25 * k for k in point_k]  # four points at +-0.5 m
+    stiffness = np.zeros((boxes, boxes))
+    for i, k in enumerate(face_k):  # face i turns box i against box i - 1 (the ground for i = 0)
+        stiffness[i, i] += k
+        if i:
+            stiffness[i - 1, i - 1] += k
+            stiffness[i, i - 1] -= k
+            stiffness[i - 1, i] -= k
+    # the weight above: box j's tilt lowers every box above it by (tilt^2 / 2) x 1 m, itself by half that
+    geometric = np.diag([mass * gravity * (boxes - j - 0.5) for j in range(boxes)])
+    return bool(np.linalg.eigvalsh(stiffness - geometric).min() > 0.0)
+
+
+def critical_omega(boxes: int, turn_factor: float) -> float:
+    lo, hi = 1.0, 1e4
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if column_is_stiff_enough(boxes, mid, turn_factor) else (mid, hi)
+    return hi
+
+
+def run_buckling(args) -> None:
+    from sandbox import Settings
+
+    settings = Settings()
+    kappa, hertz = settings.contact_stiffness_limit, 60.0  # stack_20 and nudged_stack_20 ask for 60 Hz
+    stiff, soft = critical_omega(args.boxes, 2.0), critical_omega(args.boxes, 1.0)
+    print(f"{args.boxes}-box column of unit boxes: critical omega {stiff:.0f} rad/s with the preload's pivot "
+          f"(f = 2), {soft:.0f} rad/s about the face's middle (f = 1); asked: {hertz:g} Hz = "
+          f"{2 * math.pi * hertz:.0f} rad/s")
+    ratios = {"serial PGS, colored PGS": 1.0,  # K~ / K of an interior box's row
+              "projected Jacobi": 1.0 / settings.jacobi_relaxation,
+              "mass splitting": max(1.0, 8 / settings.split_relaxation),  # 4 points below + 4 above
+              "block mass splitting": 2.0}  # one manifold below, one above
+    counts = [int(x) for x in args.iterations.split(",")]
+    print(f"each schedule's spring at the stability limit kappa = {kappa:g} [rad/s], then the prediction "
+          "(buckles: below both; marginal: between; stands: above both)")
+    print(f"{'schedule':26s}" + "".join(f"{k:>16d} it" for k in counts))
+    for name, ratio in ratios.items():
+        cells = []
+        for k in counts:
+            h = 1.0 / 60.0 / k
+            omega = min(2 * math.pi * hertz, kappa * math.sqrt(2.0 / ratio) / h)
+            verdict = "buckles" if omega < stiff else "marginal" if omega < soft else "stands"
+            cells.append(f"{omega:7.0f} {verdict:>10s}")
+        print(f"{name:26s}" + "".join(f"{c:>19s}" for c in cells))
+
+
 # ----------------------------------------------------------------------------- the scan
 def run_scan(args) -> None:
     from sandbox import Scene, Settings, World
@@ -154,6 +220,9 @@ def main() -> None:
     model = sub.add_parser("model", help="spectral radius of the linear column model")
     model.add_argument("--boxes", type=int, default=20)
     model.add_argument("--iterations", default="1,2,4,8,15,30")
+    buckling = sub.add_parser("buckling", help="the column's critical spring against each schedule's cap")
+    buckling.add_argument("--boxes", type=int, default=20)
+    buckling.add_argument("--iterations", default="1,2,4,8,15,30")
     scan = sub.add_parser("scan", help="the engine with the stability limit off")
     scan.add_argument("scene", nargs="?", default="pyramid_20")
     scan.add_argument("--steps", type=int, default=300)
@@ -161,7 +230,7 @@ def main() -> None:
     scan.add_argument("--iterations", default="1,2,4,8,15,30")
     scan.add_argument("--hertz", default="5,10,15,20,30,45,60")
     args = ap.parse_args()
-    run_model(args) if args.what == "model" else run_scan(args)
+    {"model": run_model, "buckling": run_buckling, "scan": run_scan}[args.what](args)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,29 @@
+"""The column-buckling model of benchmarks/stiffness_limit.py (docs/method-notes.md, "Limits"),
+checked where it has a closed form, so its prediction for the 20-box column can be trusted."""
+
+import importlib.util
+import math
+from pathlib import Path
+
+import pytest
+
+_PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "stiffness_limit.py"
+_spec = importlib.util.spec_from_file_location("stiffness_limit", _PATH)
+stiffness_limit = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(stiffness_limit)
+
+G = 9.81
+
+
+@pytest.mark.parametrize("turn_factor", [1.0, 2.0])
+def test_one_box_tips_where_its_springs_no_longer_carry_its_weight_over_half_its_height(turn_factor):
+    """A unit box on four ground springs of (m / 4) omega^2 at +-0.5 m turns back while
+    f (m / 4) omega^2 > m g 0.5 (its centre 0.5 m up): omega_crit^2 = 2 g / f."""
+    assert stiffness_limit.critical_omega(1, turn_factor) == pytest.approx(math.sqrt(2.0 * G / turn_factor), rel=1e-6)
+
+
+def test_taller_columns_need_stiffer_springs_and_the_critical_spring_does_not_depend_on_the_mass():
+    omegas = [stiffness_limit.critical_omega(n, 1.0) for n in (2, 5, 10, 20)]
+    assert omegas == sorted(omegas) and omegas[0] < omegas[-1]
+    assert stiffness_limit.column_is_stiff_enough(20, 1.01 * omegas[-1], 1.0, mass=1.0)
+    assert not stiffness_limit.column_is_stiff_enough(20, 0.99 * omegas[-1], 1.0, mass=1.0)
