@@ -132,12 +132,15 @@ class Stepper:
         staged = p.enabled or c.record_residuals or pause  # a timer per stage, a read per sweep
         launch = "per-stage" if staged else c.schedule.launch(s, c.arch, b.caps.bodies, plan)
         friction = contact_switch(c.effects)
-        if fused and launch == "one" and not (watch or bounce or c.schedule.info.needs_coloring):
+        if fused and launch in ("one", "shared") and not (watch or bounce or c.schedule.info.needs_coloring):
             # nothing for the host between set-up, solve and store: one launch, the same bits
             sc = c.schedule
             switches = step_kernels.solve_switches(sc.kind, sc.mode, sc.info.scales_masses, friction, sc.visit,
                                                    s.warm_start > 0.0, track, motion_switch(c.effects))
-            step_kernels.solve_step_in_order(b, switches, awake, self.edits.dispatch)
+            if launch == "one":
+                step_kernels.solve_step_in_order(b, switches, awake, self.edits.dispatch)
+            else:
+                step_kernels.solve_step_shared(b, switches, *sc.team(plan.substeps, plan.biased, plan.relax), awake, self.edits.dispatch)
         else:
             yield from self._solve_in_launches(c, b, awake, plan, h, launch, fused, watch, track, step_count, pause)
         self._check_errors(b, step_count)

@@ -155,8 +155,9 @@ def test_iteration_launches_give_the_same_bits(solver):
     """The iteration loop in one launch (serialized), in one launch shared by the CPU threads,
     in one launch per substep (parallel phases) and stage by stage (a launch per phase, as
     profiled) is the same computation: no float atomics and fixed-order gathers, so the
-    states agree bit for bit (solvers/substep.py). "one" here also runs the step's set-up,
-    solve and store as one launch (step_kernels.solve_step_in_order: no bounce in this pile)."""
+    states agree bit for bit (solvers/substep.py). "one" and "shared" here also run the step's
+    set-up, solve and store as one launch (step_kernels.solve_step_in_order, solve_step_shared:
+    no bounce in this pile)."""
     from sandbox import Settings
 
     scene = Scene.from_dict(_pile_300())

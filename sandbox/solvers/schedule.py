@@ -176,10 +176,8 @@ class Schedule:
         if launch == "one":
             substep.iterate_in_order(*self._loop_args(loop), loop.iterations, loop.sweeps, loop.relax)
         elif launch == "shared":
-            phases = substep.shared_phase_bound(self.visit, loop.iterations, loop.sweeps, loop.relax)
-            members = team.cpu_threads()
-            substep.iterate_shared(team.team_for(phases, members), *self._loop_args(loop), loop.iterations,
-                                   loop.sweeps, loop.relax, phases, members)
+            crew, members = self.team(loop.iterations, loop.sweeps, loop.relax)
+            substep.iterate_shared(crew, *self._loop_args(loop), loop.iterations, loop.sweeps, loop.relax, members)
         elif launch == "per-substep":
             fold = self.folds_warm_start(loop.warm)
             k = loop.iterations
@@ -188,6 +186,13 @@ class Schedule:
                 substep.substep_parallel(*self._loop_args(loop), warm_here, then_warm)
         else:
             raise ValueError(f"iterate: {launch!r} is not a fused launch")
+
+    def team(self, substeps: int, biased: int, relax: int) -> tuple:
+        """(the thread team whose counters cover a shared iteration loop of ``substeps``
+        substeps with ``biased`` and ``relax`` sweeps each, its member count)."""
+        phases = substep.shared_phase_bound(self.visit, substeps, biased, relax)
+        members = team.cpu_threads()
+        return team.team_for(phases, members), members
 
     def _loop_args(self, loop: Loop) -> tuple:
         """The arguments every iteration-loop kernel of substep.py starts with."""
