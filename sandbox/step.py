@@ -53,6 +53,7 @@ from .solvers.contact_spring import row_params
 from .solvers.mass_splitting import update_support
 from .solvers.rows import contact_switch, prepare_rows, upload_row_params
 from .solvers.schedule import Loop, Schedule
+from .solvers.substep import BLOCKS
 from .step_scalars import step_scalar_values
 
 MAX_GROWTH_RETRIES = 6
@@ -242,6 +243,7 @@ class Stepper:
 
         b, p, k, sweeps, relax, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.relax, loop.awake
         fold = schedule.folds_warm_start(loop.warm)
+        blocks = schedule.visit == BLOCKS  # the Jacobi family: a fast push earns a second relax sweep
         for i in range(k):
             if i == 0 or not fold:
                 if loop.warm:
@@ -251,6 +253,8 @@ class Stepper:
                     with p.stage("integrate_velocities"):
                         integrate_velocities(b.bodies, awake, loop.gravity, loop.h)
             with p.stage("iterate"):
+                if blocks:
+                    b.rows.fast_push[None] = 0
                 for j in range(sweeps):
                     schedule.sweep(b, awake, BIASED, loop.friction)
                     if record_residuals:
@@ -260,11 +264,12 @@ class Stepper:
             with p.stage("integrate_positions"):
                 integrate_positions(b.bodies, awake, loop.motion, loop.h, b.errors)
             with p.stage("relax"):
-                for j in range(relax):
-                    then_warm = int(fold and i < k - 1 and j == relax - 1)
+                n_relax = relax + (int(b.rows.fast_push[None]) if blocks else 0)  # Settings.relax_push_speed
+                for j in range(n_relax):
+                    then_warm = int(fold and i < k - 1 and j == n_relax - 1)
                     schedule.sweep(b, awake, RELAX, loop.friction, then_warm, loop.gravity, loop.h)
                     if pause:
-                        yield Sweep(i, k, "relax", j, relax, bool(then_warm))
+                        yield Sweep(i, k, "relax", j, n_relax, bool(then_warm))
             if loop.track:
                 add_step_impulses(b.rows, b.contacts)
 

@@ -62,8 +62,9 @@ import taichi as ti
 from ..formulation import baumgarte_rate
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
- UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z, PRELOAD, PRELOAD_LAG) = range(20)
-PARAM_COUNT = 20
+ UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z, PRELOAD, PRELOAD_LAG,
+ RELAX_PUSH) = range(21)
+PARAM_COUNT = 21
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
 deflection [1], the support average's blend per step [1], the step [s], the up
@@ -71,7 +72,9 @@ direction (against gravity; zero without gravity), the gap gravity closes in one
 from rest, |g| dt^2 [m], and the paper formulation's Baumgarte rate [1/s] (0: the soft step;
 formulation.py), the split's share kept for blocks not counted in n_b (Settings.idle_split),
 gravity [m/s^2] (read by the iteration loop's fused launches, solvers/substep.py), the preload's
-share [1] and its lag [1] (Settings.contact_preload, contact_preload_lag)."""
+share [1] and its lag [1] (Settings.contact_preload, contact_preload_lag), and the push speed
+that earns a substep a second relax sweep [m/s] (Settings.relax_push_speed; 0: never, and under
+the paper formulation, which has no relax sweeps)."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
@@ -102,6 +105,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity) -> list[floa
     values[GRAVITY_X], values[GRAVITY_Y], values[GRAVITY_Z] = (float(x) for x in gravity)
     values[PRELOAD] = settings.contact_preload
     values[PRELOAD_LAG] = settings.contact_preload_lag
+    values[RELAX_PUSH] = settings.relax_push_speed if values[BAUMGARTE_RATE] == 0.0 else 0.0
     return values
 
 

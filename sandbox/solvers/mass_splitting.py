@@ -51,7 +51,7 @@ from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, PRELOAD_LAG,
                              RESTITUTION_THRESHOLD, STEP_DT, support_push)
 from .rolling import rolling_impulse
-from .rows import ROLLING, point_impulse, solve_point
+from .rows import BIASED, ROLLING, point_impulse, pushes_fast, solve_point
 from .split_scales import block_weights
 
 vec3 = ti.math.vec3
@@ -341,15 +341,19 @@ def warm_start_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), b
 
 @ti.func
 def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-                mode: ti.template(), friction: ti.template(), then_warm: ti.i32, k: ti.i32):
+                mode: ti.template(), friction: ti.template(), then_warm: ti.i32, k: ti.i32) -> ti.i32:
     """Block k solved on its own copies of its bodies' velocities (read from before the
-    sweep); the changes, weighted, go to its two slots."""
+    sweep); the changes, weighted, go to its two slots. Returns 1 when a biased row of it
+    pushes fast (rows.pushes_fast: its substep gets a second relax sweep), else 0."""
     start, count, a, b = block_range(c, k, kind)
     va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
     vb0, wb0 = bodies.lin_vel[b], bodies.ang_vel[b]
     va, wa, vb, wb = va0, wa0, vb0, wb0
+    fast = 0
     for q in range(start, start + count):
         va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
+        if ti.static(mode == BIASED):
+            fast = ti.max(fast, pushes_fast(rows, c, q))
     if then_warm:
         # the next substep's warm start, applied once more to the copies with the scaled
         # responses: scale x weight = 1 for every Jacobi-family body (module docstring),
@@ -366,21 +370,26 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
     s.slot_dw[2 * k] = dwa
     s.slot_dv[2 * k + 1] = dvb
     s.slot_dw[2 * k + 1] = dwb
+    return fast
 
 
 @ti.func
 def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                  kind: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, gravity: vec3,
-                 h: ti.f32):
+                 h: ti.f32, active: ti.i32 = 1):
     """One Jacobi sweep over all blocks from the same velocities, then the per-body merge.
 
     ``then_warm`` (the last relax sweep of a substep that has a successor): the block's
     impulses are final for this substep, so its slots also carry the next substep's warm
     start, and the gather adds the next substep's gravity: one block pass and two body
-    passes fewer per substep than a separate gravity pass and warm-start pass."""
-    for k in range(s.block_count[None]):
-        sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k)
-    gather_slots(s, bodies, awake, gravity * h * ti.cast(then_warm, ti.f32), 1)
+    passes fewer per substep than a separate gravity pass and warm-start pass. A biased
+    sweep sets ``rows.fast_push`` when a row pushes fast (rows.pushes_fast; every block that
+    finds one writes the same 1). ``active`` = 0 runs both loops zero times (they stay
+    top-level, parallel loops)."""
+    for k in range(s.block_count[None] * active):
+        if sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k):
+            rows.fast_push[None] = 1
+    gather_slots(s, bodies, awake, gravity * h * ti.cast(then_warm, ti.f32), active)
 
 
 @ti.kernel

@@ -48,7 +48,7 @@ import numpy as np
 import taichi as ti
 
 from ..math3d import plane_basis, quat_rotate, quat_rotate_inv
-from .contact_spring import INV_H, MAX_PUSH, PARAM_COUNT, RESTITUTION_THRESHOLD, row_spring, supported_load
+from .contact_spring import INV_H, MAX_PUSH, PARAM_COUNT, RELAX_PUSH, RESTITUTION_THRESHOLD, row_spring, supported_load
 from .rolling import respond_rolling, solve_rolling
 from .split_scales import block_scales
 
@@ -93,6 +93,7 @@ class Rows:
         self.lam_step = ti.Vector.field(3, ti.f32, c)  # [N s] impulses summed over the step (when tracked)
         self.lam_bounce = ti.field(ti.f32, c)  # [N s] the restitution pass's normal impulse
         self.bounce_residual = ti.field(ti.f32, ())  # [m/s] largest bounce-row residual of the last sweep
+        self.fast_push = ti.field(ti.i32, ())  # 1: a biased sweep of this substep pushed a row fast (pushes_fast)
         self.residual = ti.field(ti.f32, c)  # squared LCP residual of the point's rows [(m/s)^2]
 
 
@@ -178,6 +179,27 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
 
 
 @ti.func
+def bias_push(rows: ti.template(), c: ti.template(), q: ti.i32, s: ti.f32) -> ti.f32:
+    """[m/s] The biased sweep's target of penetrating point q (separation ``s`` < 0): the
+    spring's push-out, negative, at most ``max_push_speed``."""
+    return ti.max(rows.rate[q] * ti.min(s + c.slop[q], 0.0), -rows.params[MAX_PUSH])
+
+
+@ti.func
+def pushes_fast(rows: ti.template(), c: ti.template(), q: ti.i32) -> ti.i32:
+    """1 when point q's biased row pushes out faster than ``Settings.relax_push_speed`` (its
+    separation as the biased sweep reads it): the Jacobi family then relaxes the substep twice
+    (solvers/substep.py)."""
+    limit = rows.params[RELAX_PUSH]
+    s = rows.sep_now[q]
+    fast = 0
+    if limit > 0.0 and s < 0.0:
+        if -bias_push(rows, c, q, s) > limit:
+            fast = 1
+    return fast
+
+
+@ti.func
 def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32, mode: ti.template(),
                   keep: ti.template() = True):
     """(target velocity b, compliance gamma) of point q's normal row: the row asks for
@@ -203,7 +225,7 @@ def normal_target(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
     if s > 0.0:
         target = s * rows.params[INV_H]
     elif ti.static(mode == BIASED):
-        target = ti.max(rows.rate[q] * ti.min(s + c.slop[q], 0.0), -rows.params[MAX_PUSH])
+        target = bias_push(rows, c, q, s)
     if ti.static(mode == BIASED):
         gamma = rows.gamma[q]
     return target, gamma

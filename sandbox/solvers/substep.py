@@ -94,13 +94,18 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
         if ti.static(fold):
             first = 1 if it == 0 else 0
         _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
+        if ti.static(schedule == BLOCKS):
+            rows.fast_push[None] = 0
         for _sb in range(sweeps):
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
         positions_loop(bodies, awake, motion, h, err)
-        for sr in range(relax):
+        n_relax = relax
+        if ti.static(schedule == BLOCKS):
+            n_relax = relax + rows.fast_push[None]  # a fast push: one more relax sweep (Settings.relax_push_speed)
+        for sr in range(n_relax):
             then_warm = 0
             if ti.static(fold):
-                then_warm = 1 if it < iterations - 1 and sr == relax - 1 else 0
+                then_warm = 1 if it < iterations - 1 and sr == n_relax - 1 else 0
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
         if ti.static(track):
             add_step_impulses_loop(rows, c)
@@ -125,34 +130,45 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
     _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
+    if ti.static(schedule == BLOCKS):
+        rows.fast_push[None] = 0
     _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
     positions_loop(bodies, awake, motion, h, err)
-    _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
+    if ti.static(schedule == BLOCKS):
+        # a fast push: a second relax sweep, which then carries the next substep's warm start
+        extra = rows.fast_push[None]
+        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, then_warm * (1 - extra), gravity, h)
+        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, then_warm, gravity, h, extra)
+    else:
+        _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
     if ti.static(track):
         add_step_impulses_loop(rows, c)
 
 
 def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int) -> int:
-    """Most phases ``iterate_shared`` walks (its team needs a counter pair per phase)."""
+    """Most phases ``iterate_shared`` walks (its team needs a counter pair per phase; the
+    Jacobi family's substeps may relax once more, Settings.relax_push_speed)."""
     if schedule == PGS_COLORED:
         per_sweep = MAX_COLORS + 1  # every colour, then the overflow colour
         return iterations * ((sweeps + relax) * per_sweep + 4)
-    return iterations * (2 * (sweeps + relax) + 3)
+    return iterations * (2 * (sweeps + relax + 1) + 3)
 
 
 @ti.func
 def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
                  rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-                 mode: ti.template(), friction: ti.template(), then_warm: ti.i32, warm_only: ti.template()) -> ti.i32:
-    """Phase p over all blocks: their warm start, or one sweep. Returns the next phase."""
+                 mode: ti.template(), friction: ti.template(), then_warm: ti.i32, warm_only: ti.template(),
+                 fast_slot: ti.i32 = 0) -> ti.i32:
+    """Phase p over all blocks: their warm start, or one sweep (a biased one marks a fast push
+    in ``team.fast[fast_slot]``, _team_member). Returns the next phase."""
     n = s.block_count[None]
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
     while lo < hi:
         for k in range(lo, hi):
             if ti.static(warm_only):
                 warm_block(s, rows, c, bodies, kind, friction, k)
-            else:
-                sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k)
+            elif sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k):
+                team.fast[fast_slot] = 1  # a plain store before this member's "finished" increment
         tm.finish(team, p, hi - lo)
         lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
     tm.wait(team, p, n)
@@ -216,15 +232,16 @@ def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
                   rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                   motion: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                   schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3,
-                  h: ti.f32) -> ti.i32:
+                  h: ti.f32, fast_slot: ti.i32 = 0) -> ti.i32:
     """One sweep; ``pose_after``: the bodies' poses advance right after it (the biased
-    solve's last sweep), fused into the Jacobi family's gather."""
+    solve's last sweep), fused into the Jacobi family's gather. ``fast_slot``: _block_phase."""
     if ti.static(schedule == PGS_COLORED):
         p = _color_phases(team, p, member, members, rows, c, bodies, col, mode, friction)
         if pose_after:
             p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, POSE, vec3(0.0), gravity, h)
     else:
-        p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, mode, friction, then_warm, False)
+        p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, mode, friction, then_warm, False,
+                         fast_slot)
         dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
         if pose_after:
             p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GATHER_POSE, dv_extra, gravity,
@@ -270,13 +287,17 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
             else:
                 p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GRAVITY, vec3(0.0),
                                 gravity, h)
+        fast_slot = p  # this substep's biased phases mark a fast push here; read once they are all done
         for sb in range(sweeps):
             p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
-                              BIASED, friction, 0, int(sb == sweeps - 1), gravity, h)
-        for sr in range(relax):
+                              BIASED, friction, 0, int(sb == sweeps - 1), gravity, h, fast_slot)
+        n_relax = relax
+        if ti.static(schedule == BLOCKS):
+            n_relax = relax + ti.atomic_add(team.fast[fast_slot], 0)  # the same for every member: never reset in a loop
+        for sr in range(n_relax):
             then_warm = 0
             if ti.static(fold):
-                then_warm = 1 if it < iterations - 1 and sr == relax - 1 else 0
+                then_warm = 1 if it < iterations - 1 and sr == n_relax - 1 else 0
             p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
                               RELAX, friction, then_warm, 0, gravity, h)
         if ti.static(track):

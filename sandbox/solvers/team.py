@@ -36,6 +36,7 @@ class Team:
     def __init__(self, max_counters: int):
         self.claimed = ti.field(ti.i32, max_counters)  # items handed out, per phase and home range
         self.finished = ti.field(ti.i32, max_counters)  # items done, per phase
+        self.fast = ti.field(ti.i32, max_counters)  # 1: a biased phase starting here pushed fast (substep.py)
 
 
 _teams: dict[int, Team] = {}
@@ -58,6 +59,7 @@ def reset_loop(team: ti.template(), counters: ti.i32):
     for p in range(counters):
         team.claimed[p] = 0
         team.finished[p] = 0
+        team.fast[p] = 0
 
 
 @ti.func
