@@ -48,7 +48,7 @@ import taichi as ti
 from ..awake import body_id, body_total
 from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
-from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, PRELOAD_LAG,
+from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, PRELOAD_LAG, RELAX_PUSH,
                              RESTITUTION_THRESHOLD, STEP_DT, support_push)
 from .rolling import rolling_impulse
 from .rows import BIASED, ROLLING, point_impulse, pushes_fast, solve_point
@@ -349,11 +349,13 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
     va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
     vb0, wb0 = bodies.lin_vel[b], bodies.ang_vel[b]
     va, wa, vb, wb = va0, wa0, vb0, wb0
-    fast = 0
     for q in range(start, start + count):
         va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
-        if ti.static(mode == BIASED):
-            fast = ti.max(fast, pushes_fast(rows, c, q))
+    fast = 0
+    if ti.static(mode == BIASED):
+        if rows.params[RELAX_PUSH] > 0.0:  # off: one read per block
+            for q in range(start, start + count):
+                fast = ti.max(fast, pushes_fast(rows, c, q))
     if then_warm:
         # the next substep's warm start, applied once more to the copies with the scaled
         # responses: scale x weight = 1 for every Jacobi-family body (module docstring),

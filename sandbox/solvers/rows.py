@@ -187,14 +187,13 @@ def bias_push(rows: ti.template(), c: ti.template(), q: ti.i32, s: ti.f32) -> ti
 
 @ti.func
 def pushes_fast(rows: ti.template(), c: ti.template(), q: ti.i32) -> ti.i32:
-    """1 when point q's biased row pushes out faster than ``Settings.relax_push_speed`` (its
+    """1 when point q's biased row pushes out faster than ``Settings.relax_push_speed`` (> 0; its
     separation as the biased sweep reads it): the Jacobi family then relaxes the substep twice
     (solvers/substep.py)."""
-    limit = rows.params[RELAX_PUSH]
     s = rows.sep_now[q]
     fast = 0
-    if limit > 0.0 and s < 0.0:
-        if -bias_push(rows, c, q, s) > limit:
+    if s < 0.0:
+        if -bias_push(rows, c, q, s) > rows.params[RELAX_PUSH]:
             fast = 1
     return fast
 
