@@ -9,8 +9,9 @@ twice: once with the profiler on (ms/step by stage; the profiler runs the step s
 stage, a launch per phase, so these columns carry launch and dispatch costs the fast path
 does not pay) and once without (whole-step wall time -> ms/step and steps/s, the numbers
 to compare with other engines). ``loop`` is the iteration loop of the fast path (its
-launch(es) with a device sync on each side) and ms/iter = loop / iterations. Compile time
-is reported apart.
+launch(es) with a device sync on each side; where the step's set-up, solve and store are one
+launch, step_kernels.solve_step_in_order / solve_step_shared, that launch, set-up and store
+included) and ms/iter = loop / iterations. Compile time is reported apart.
 """
 
 from __future__ import annotations
@@ -22,27 +23,35 @@ import time
 from sandbox import SOLVERS, Scene, World
 from sandbox.scene.library import resolve_scene
 
-ITERATION_KERNELS = ("iterate_shared", "iterate_in_order", "substep_parallel")
+ITERATION_KERNELS = {"sandbox.solvers.substep": ("iterate_shared", "iterate_in_order", "substep_parallel"),
+                     "sandbox.step_kernels": ("solve_step_in_order", "solve_step_shared")}
 _loop_seconds = [0.0]
 
 
 def _time_iteration_kernels() -> None:
     """Wrap the iteration loop's kernels with synced timers (summed into _loop_seconds)."""
+    import importlib
+
     import taichi as ti
 
-    from sandbox.solvers import substep
+    for module_name, names in ITERATION_KERNELS.items():
+        module = importlib.import_module(module_name)
+        for name in names:
+            _wrap(module, name, ti)
 
-    for name in ITERATION_KERNELS:
-        kernel = getattr(substep, name)
 
-        def timed(*args, _kernel=kernel, **kw):
-            ti.sync()
-            t = time.perf_counter()
-            _kernel(*args, **kw)
-            ti.sync()
-            _loop_seconds[0] += time.perf_counter() - t
+def _wrap(module, name: str, ti) -> None:
+    """``module.name`` replaced by the same kernel between two syncs, its time summed."""
+    kernel = getattr(module, name)
 
-        setattr(substep, name, timed)
+    def timed(*args, **kw):
+        ti.sync()
+        t = time.perf_counter()
+        kernel(*args, **kw)
+        ti.sync()
+        _loop_seconds[0] += time.perf_counter() - t
+
+    setattr(module, name, timed)
 
 
 def bench(scene_name: str, solver: str, iterations: int, settle: int, steps: int, arch: str) -> dict:

@@ -118,12 +118,14 @@ class Settings:
 
     relax_push_speed: float = 0.0
     """[m/s] When > 0: a substep in which a contact's position bias asks for a push-out faster
-    than this gets a second relax sweep under the Jacobi family (projected Jacobi, mass
-    splitting, block mass splitting), whose split relax sweep takes a push back more slowly than
-    Gauss-Seidel's. Ten boxes placed 30 % into each other rise at 5.4 m/s under mass splitting at
-    15 iterations, 3.5 m/s at 1 m/s here (docs/method-notes.md, "Limits"). Off (0) by default: at
-    1 m/s a falling 1000-box pile's stiffened rows ask for such pushes in up to 9 of 15 substeps, ~20 %
-    more iteration-loop work while it falls. Ignored under the paper formulation (no relax sweeps)."""
+    than this runs one relax sweep more (``sweeps`` + 1) under the Jacobi family (projected
+    Jacobi, mass splitting, block mass splitting), whose split relax sweep takes a push back more
+    slowly than Gauss-Seidel's. Ten boxes placed 30 % into each other rise at 5.4 m/s under mass
+    splitting at 15 iterations, 3.5 m/s at 1 m/s here (docs/method-notes.md, "Limits"). Off (0)
+    by default: at 1 m/s a falling 1000-box pile's stiffened rows ask for such pushes in up to 9
+    of 15 substeps, ~20 % more iteration-loop work while it falls. The push is capped at
+    ``max_push_speed``, so a value at or above that never fires. Ignored under the paper
+    formulation (no relax sweeps)."""
 
     restitution_threshold: float = 1.0
     """[m/s] Approach speed below which restitution is ignored, so resting

@@ -8,7 +8,8 @@ The step, stage by stage (names = profile keys = report keys, profile.STAGES):
 4. ``iterations`` substeps of h / iterations (Box2D v3's soft step, see solvers/rows.py):
    ``integrate_velocities`` (gravity), ``iterate`` (warm start + one biased sweep of the
    chosen schedule), ``integrate_positions`` (symplectic Euler, conservative rotation,
-   finite guard), ``relax`` (one rigid sweep without position bias)
+   finite guard), ``relax`` (one rigid sweep without position bias; two after a fast push
+   under the Jacobi family when ``Settings.relax_push_speed`` asks for it)
 5. ``relax``        restitution pass (repeated until the bounce converges, for every schedule),
    impulses stored for the next step
 
@@ -20,8 +21,10 @@ launches (``step_kernels.py``: state save + broadphase + narrowphase, then rows 
 schedule set-up, then velocity check + contact store; the same loops as the per-stage
 kernels, the same bits). The iteration loop of step 4 is one kernel launch on the CPU,
 shared by its threads (``Settings.iteration_launch``, solvers/substep.py and team.py:
-launch and dispatch overhead, not arithmetic, bound small scenes) or one launch per
-substep on CUDA; with the profiler on it runs stage by stage, a launch per phase, so that
+launch and dispatch overhead, not arithmetic, bound small scenes), and where nothing runs
+on the host mid-step the set-up, that loop and the store are one launch
+(``step_kernels.solve_step_in_order`` / ``solve_step_shared``: two launches a step); on CUDA
+the loop is one launch per substep; with the profiler on it runs stage by stage, a launch per phase, so that
 each stage has its timer (the unfused path; the iteration loop is then ``iterate`` plus the
 per-phase stages). Which kernels a sweep launches is the schedule's business
 (solvers/schedule.py); this module only orders the stages.
@@ -141,7 +144,8 @@ class Stepper:
             if launch == "one":
                 step_kernels.solve_step_in_order(b, switches, awake, self.edits.dispatch)
             else:
-                step_kernels.solve_step_shared(b, switches, *sc.team(plan.substeps, plan.biased, plan.relax), awake, self.edits.dispatch)
+                crew = sc.team(plan.substeps, plan.biased, plan.relax)
+                step_kernels.solve_step_shared(b, switches, *crew, awake, self.edits.dispatch)
         else:
             yield from self._solve_in_launches(c, b, awake, plan, h, launch, fused, watch, track, step_count, pause)
         self._check_errors(b, step_count)

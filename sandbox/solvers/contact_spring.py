@@ -59,7 +59,7 @@ import math
 
 import taichi as ti
 
-from ..formulation import baumgarte_rate
+from ..formulation import PAPER, baumgarte_rate
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
  UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z, PRELOAD, PRELOAD_LAG,
@@ -105,7 +105,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity) -> list[floa
     values[GRAVITY_X], values[GRAVITY_Y], values[GRAVITY_Z] = (float(x) for x in gravity)
     values[PRELOAD] = settings.contact_preload
     values[PRELOAD_LAG] = settings.contact_preload_lag
-    values[RELAX_PUSH] = settings.relax_push_speed if values[BAUMGARTE_RATE] == 0.0 else 0.0
+    values[RELAX_PUSH] = settings.relax_push_speed if settings.formulation != PAPER else 0.0
     return values
 
 

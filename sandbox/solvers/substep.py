@@ -12,7 +12,8 @@ them, in two ways:
   iterations is serialized, and Taichi runs every loop nested in it in order on one thread
   (only a kernel's outermost loops are parallel). For the Jacobi family the result is bit
   for bit that of the parallel launches: a block reads only the velocities from before the
-  sweep, writes only its own slots, and each body sums its slots in a fixed order; for
+  sweep, writes only its own slots (and, a biased one with a fast push, the same 1 into a
+  shared flag), and each body sums its slots in a fixed order; for
   ``pgs-colored`` the manifolds of one colour share no dynamic body. What is lost is the
   thread parallelism inside a sweep.
 * ``substep_parallel``: ONE launch per substep whose top-level loops (each phase's loops)
@@ -82,7 +83,8 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
                            warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
                            h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32):
     """All ``iterations`` substeps of ``h``, everything in order on one thread: ``sweeps`` biased
-    and ``relax`` relax sweeps each (formulation.sweep_plan). ``track``: each substep's impulses
+    and ``relax`` relax sweeps each (formulation.sweep_plan; one relax sweep more after a fast
+    push under the Jacobi family, Settings.relax_push_speed). ``track``: each substep's impulses
     are added to the step's (``rows.lam_step``). ``b``: the world's BufferSet (one template
     argument instead of six: step_kernels.py says why)."""
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
@@ -123,9 +125,11 @@ def iterate_in_order(b: ti.template(), kind: ti.template(), schedule: ti.templat
 def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
                      warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
                      h: ti.f32, first: ti.i32, then_warm: ti.i32):
-    """One substep of ``h`` with one sweep each, every phase's loops parallel, in one launch.
-    ``first``: this substep does its own gravity and warm start; ``then_warm``: its relax
-    sweep does the next one's (both 1 / 0 decided by ``Schedule.iterate`` with ``folds_warm_start``)."""
+    """One substep of ``h`` with one sweep each (the Jacobi family: a second relax sweep after a
+    fast push, Settings.relax_push_speed; its loops run zero times otherwise), every phase's
+    loops parallel, in one launch. ``first``: this substep does its own gravity and warm start;
+    ``then_warm``: its last relax sweep does the next one's (both 1 / 0 decided by
+    ``Schedule.iterate`` with ``folds_warm_start``)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
@@ -146,8 +150,8 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
 
 
 def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int) -> int:
-    """Most phases ``iterate_shared`` walks (its team needs a counter pair per phase; the
-    Jacobi family's substeps may relax once more, Settings.relax_push_speed)."""
+    """Most phases ``iterate_shared`` walks (its team needs counters per phase; the Jacobi
+    family's substeps may relax once more, Settings.relax_push_speed)."""
     if schedule == PGS_COLORED:
         per_sweep = MAX_COLORS + 1  # every colour, then the overflow colour
         return iterations * ((sweeps + relax) * per_sweep + 4)

@@ -15,7 +15,8 @@ so a team of one (a single thread, or members that Taichi happens to start one a
 other) still runs every phase in order and cannot deadlock. Which member solves which
 chunk changes from run to run, but never the result: within a phase every item writes
 only its own outputs (a block its slots, a body its state), exactly as in the one-thread
-loop, so the bits are those of ``iterate_in_order``.
+loop, so the bits are those of ``iterate_in_order``. (One shared word more: a biased block
+with a fast push stores 1 in its substep's ``fast`` slot; every writer stores the same 1.)
 
 The counters are sequentially consistent integer atomics (Taichi's CPU codegen), which
 order each member's plain stores before its "finished" increment and after the "all

@@ -68,7 +68,7 @@ def test_team_walks_the_phases_in_order_and_does_every_item_once(fields, members
 
 def test_team_counters_cover_the_phases_of_every_member():
     """``team_for`` gives one pooled Team per power-of-two class, large enough for
-    phases x members counter pairs (iterate_shared resets exactly that many)."""
+    phases x members counters (iterate_shared clears every counter of its Team)."""
     small = tm.team_for(3, 2)
     assert small is tm.team_for(10, 2)  # the same class: the same Team, no new kernel
     big = tm.team_for(700, 3)
