@@ -17,8 +17,11 @@ included) and ms/iter = loop / iterations. Compile time is reported apart.
 from __future__ import annotations
 
 import argparse
+import importlib
 import platform
 import time
+
+import taichi as ti
 
 from sandbox import SOLVERS, Scene, World
 from sandbox.scene.library import resolve_scene
@@ -30,17 +33,13 @@ _loop_seconds = [0.0]
 
 def _time_iteration_kernels() -> None:
     """Wrap the iteration loop's kernels with synced timers (summed into _loop_seconds)."""
-    import importlib
-
-    import taichi as ti
-
     for module_name, names in ITERATION_KERNELS.items():
         module = importlib.import_module(module_name)
         for name in names:
-            _wrap(module, name, ti)
+            _wrap(module, name)
 
 
-def _wrap(module, name: str, ti) -> None:
+def _wrap(module, name: str) -> None:
     """``module.name`` replaced by the same kernel between two syncs, its time summed."""
     kernel = getattr(module, name)
 
@@ -67,8 +66,6 @@ def bench(scene_name: str, solver: str, iterations: int, settle: int, steps: int
     world.step(steps)
     stages = world.timing_ms()
     world.profiler.enabled = False
-    import taichi as ti
-
     ti.sync()
     t = time.perf_counter()
     world.step(steps)

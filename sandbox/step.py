@@ -52,7 +52,7 @@ from .formulation import sweep_plan
 from .integrate import check_velocities, motion_switch
 from .persistence import match_contacts, store_contacts
 from .sleep import after_step, wake_touched
-from .solvers.contact_spring import row_params
+from .solvers.contact_spring import relax_push_limit, row_params
 from .solvers.mass_splitting import update_support
 from .solvers.rows import contact_switch, prepare_rows, upload_row_params
 from .solvers.schedule import Loop, Schedule
@@ -247,7 +247,9 @@ class Stepper:
 
         b, p, k, sweeps, relax, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.relax, loop.awake
         fold = schedule.folds_warm_start(loop.warm)
-        blocks = schedule.visit == BLOCKS  # the Jacobi family: a fast push earns a second relax sweep
+        # the Jacobi family with Settings.relax_push_speed on: a fast push earns a second relax sweep,
+        # which the host learns from a flag read per substep
+        watch_push = schedule.visit == BLOCKS and relax_push_limit(self.edits.settings) > 0.0
         for i in range(k):
             if i == 0 or not fold:
                 if loop.warm:
@@ -257,7 +259,7 @@ class Stepper:
                     with p.stage("integrate_velocities"):
                         integrate_velocities(b.bodies, awake, loop.gravity, loop.h)
             with p.stage("iterate"):
-                if blocks:
+                if watch_push:
                     b.rows.fast_push[None] = 0
                 for j in range(sweeps):
                     schedule.sweep(b, awake, BIASED, loop.friction)
@@ -268,7 +270,7 @@ class Stepper:
             with p.stage("integrate_positions"):
                 integrate_positions(b.bodies, awake, loop.motion, loop.h, b.errors)
             with p.stage("relax"):
-                n_relax = relax + (int(b.rows.fast_push[None]) if blocks else 0)  # Settings.relax_push_speed
+                n_relax = relax + (int(b.rows.fast_push[None]) if watch_push else 0)
                 for j in range(n_relax):
                     then_warm = int(fold and i < k - 1 and j == n_relax - 1)
                     schedule.sweep(b, awake, RELAX, loop.friction, then_warm, loop.gravity, loop.h)

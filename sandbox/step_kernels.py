@@ -153,6 +153,6 @@ def solve_step_shared(b: ti.template(), sw: ti.template(), team: ti.template(), 
     prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], sw.kind, sw.mode, f[RELAXATION], sw.split,
                        sw.friction, dispatch)
     iterate_shared_loops(team, b, sw.kind, sw.visit, sw.friction, sw.warm, sw.track, awake, sw.motion, f[SUBSTEP],
-                         n[SUBSTEPS], n[BIASED_SWEEPS], n[RELAX_SWEEPS], ti.static(team.claimed.shape[0]), members)
+                         n[SUBSTEPS], n[BIASED_SWEEPS], n[RELAX_SWEEPS], members)
     finish_step_loops(b, sw.kind, n[SUBSTEPS], awake, f[STEP], f[SLEEP_LINEAR], f[SLEEP_ANGULAR], f[SLEEP_TIME],
                       dispatch)

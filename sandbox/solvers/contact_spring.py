@@ -105,8 +105,15 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity) -> list[floa
     values[GRAVITY_X], values[GRAVITY_Y], values[GRAVITY_Z] = (float(x) for x in gravity)
     values[PRELOAD] = settings.contact_preload
     values[PRELOAD_LAG] = settings.contact_preload_lag
-    values[RELAX_PUSH] = settings.relax_push_speed if settings.formulation != PAPER else 0.0
+    values[RELAX_PUSH] = relax_push_limit(settings)
     return values
+
+
+def relax_push_limit(settings) -> float:
+    """[m/s] The push speed that earns a Jacobi-family substep a second relax sweep
+    (Settings.relax_push_speed), 0 when there is none: off, or the paper formulation, which has
+    no relax sweeps."""
+    return settings.relax_push_speed if settings.formulation != PAPER else 0.0
 
 
 @ti.func

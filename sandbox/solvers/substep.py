@@ -312,14 +312,14 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
 def iterate_shared_loops(team: ti.template(), b: ti.template(), kind: ti.template(), schedule: ti.template(),
                          friction: ti.template(), warm: ti.template(), track: ti.template(), awake: ti.template(),
                          motion: ti.template(), h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32,
-                         counters: ti.i32, members: ti.i32):
-    """All ``iterations`` substeps of ``h``, shared by ``members`` threads, after clearing the
-    team's first ``counters`` counters (at least ``shared_phase_bound`` x ``members``; Schedule.team):
+                         members: ti.i32):
+    """All ``iterations`` substeps of ``h``, shared by ``members`` threads, after clearing every
+    counter of the team (sized for at least ``shared_phase_bound`` x ``members``, Schedule.team):
     a serial loop, then one top-level loop that starts a member per thread."""
     ti.static_assert(schedule != PGS, "serial PGS has nothing to share")
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
-    tm.reset_loop(team, counters)
+    tm.reset_loop(team, ti.static(team.claimed.shape[0]))
     for i in range(members * tm.TASK_ITEMS):
         if i % tm.TASK_ITEMS == 0:
             _team_member(team, i // tm.TASK_ITEMS, members, s, rows, c, bodies, col, err, kind, schedule, friction,
@@ -332,7 +332,6 @@ def iterate_shared(team: ti.template(), b: ti.template(), kind: ti.template(), s
                    motion: ti.template(), h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32,
                    members: ti.i32):
     """All ``iterations`` substeps of ``h`` in one launch, shared by ``members`` threads
-    (``iterate_shared_loops``; the team was sized for them, Schedule.team, and all its counters
-    are cleared)."""
+    (``iterate_shared_loops``; ``team``, ``members``: Schedule.team)."""
     iterate_shared_loops(team, b, kind, schedule, friction, warm, track, awake, motion, h, iterations, sweeps, relax,
-                         ti.static(team.claimed.shape[0]), members)
+                         members)
