@@ -58,6 +58,7 @@ class Bodies:
         self.support_points = ti.field(ti.i32, c)  # contact points holding it up, last step
         self.damping = ti.Vector.field(2, ti.f32, c)  # [1/s] linear, angular (scene.spec.RESISTANCE_KEYS)
         self.rolling = ti.Vector.field(2, ti.f32, c)  # [m] rolling, torsional friction lever arms
+        self.placed = ti.field(ti.i32, c)  # 1: put in the world since the last narrowphase (mark_placed)
 
     def upload(self, arrays: dict[str, np.ndarray]) -> None:
         """Write host arrays (N rows each) into the first N slots. Dynamic bodies keep
@@ -79,6 +80,14 @@ class Bodies:
         self.support_points.fill(0)
         update_world_inertia(self, EVERY)
         save_good_state(self, EVERY)
+
+    def mark_placed(self, indices: np.ndarray) -> None:
+        """Flag the bodies put in the world (by the scene, an edit or a fracture) that no
+        narrowphase has seen yet: a pair of theirs found deeper than a resting contact is an
+        overlap to push out gently (manifold_cache.carry_overlap), not an impact."""
+        flags = np.zeros(self.capacity, np.int32)
+        flags[np.asarray(indices, np.int64)] = 1
+        self.placed.from_numpy(flags)
 
     STATE_FIELDS = {"position": "pos", "orientation": "rot", "linear_velocity": "lin_vel",
                     "angular_velocity": "ang_vel"}

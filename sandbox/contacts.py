@@ -20,7 +20,8 @@ from .math3d import quat_mul, quat_rotate
 from .narrowphase import collide_kinds
 from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose
 from .broadphase import swept_distance
-from .manifold_cache import close_step, find_reusable, remember_manifold, reuse_manifold, start_step
+from .manifold_cache import (carry_overlap, close_step, find_reusable, old_slot, remember_manifold, reuse_manifold,
+                             start_step)
 from .prefix_sum import Scanner, exclusive_scan
 from .shapes import PLANE
 
@@ -52,6 +53,7 @@ class Contacts:
         self.has_points = ti.field(ti.i32, pc + 1)
         self.raw_slop = ti.field(ti.f32, pc)
         self.raw_size = ti.field(ti.f32, pc)
+        self.raw_overlap = ti.field(ti.i32, pc)
         self.point_start = ti.field(ti.i32, pc + 1)
         self.manifold_index = ti.field(ti.i32, pc + 1)
         self.count = ti.field(ti.i32, ())
@@ -71,6 +73,7 @@ class Contacts:
         self.restitution = ti.field(ti.f32, cc)
         self.slop = ti.field(ti.f32, cc)  # [m] the pair's tolerated penetration
         self.size = ti.field(ti.f32, cc)  # [m] the pair's smaller bounding radius (contact_deflection)
+        self.overlap = ti.field(ti.i32, cc)  # 1: the pair was found overlapping and is not yet out (manifold_cache.py)
         # per manifold (= per touching shape pair): the block of block mass splitting
         self.m_body_a = ti.field(ti.i32, pc)
         self.m_body_b = ti.field(ti.i32, pc)
@@ -136,16 +139,18 @@ def partner_material(shapes: ti.template(), partner: ti.i32):
 
 @ti.func
 def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
-                        pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
-                        speculative: ti.template(), reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(),
-                        awake: ti.template(), dispatch: ti.template()):
+                        pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32,
+                        overlap_depth: ti.f32, h: ti.f32, speculative: ti.template(), reuse_d2: ti.f32,
+                        reuse_sin: ti.f32, kinds: ti.template(), awake: ti.template(), dispatch: ti.template()):
     """Narrowphase over every candidate pair, then pack the points and manifolds.
 
     The pair's margin is the speculative distance (capped at a quarter of the smaller
     shape's bound, so millimetre bodies stay sane) plus how far the two can close in
     the step ``h``: points that may touch before the step ends are generated now and
     the solver closes the gap exactly (speculative contacts: no tunnelling). The
-    slop is likewise capped at 2 % of the smaller bound (a millimetre cube tolerates 17 um). ``kinds`` (the shape
+    slop is likewise capped at 2 % of the smaller bound (a millimetre cube tolerates 17 um). A pair
+    of a body just placed (``bodies.placed``) deeper than its slop plus ``overlap_depth`` x that
+    bound is marked overlapping (manifold_cache.carry_overlap). ``kinds`` (the shape
     kinds the scene contains, a static tuple) keeps routines for absent kinds out of
     the compiled kernel (house rule 8). A pair whose relative pose moved less than
     ``reuse_d2`` (squared distance) and whose relative rotation's half-angle sine stays
@@ -169,15 +174,19 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
         if j >= 0:
             swept += swept_distance(shapes, bodies, j, h, speculative)
         pair_margin = ti.min(margin, 0.25 * small) + swept
-        c.raw_slop[p] = ti.min(slop, SLOP_FRACTION * small)
+        pair_slop = ti.min(slop, SLOP_FRACTION * small)
+        c.raw_slop[p] = pair_slop
         c.raw_size[p] = small
         m = Manifold(count=0, normal=vec3(0.0, 0.0, 1.0))
-        o = find_reusable(cache, i, j, a, b, pair_margin, reuse_d2, reuse_sin)
+        found = old_slot(cache, i, j)
+        o = find_reusable(cache, found, a, b, pair_margin, reuse_d2, reuse_sin)
         if o >= 0:
             m = reuse_manifold(cache, o, p, a, b)
         else:
             m = collide_kinds(pool, a, b, pair_margin, kinds)
             remember_manifold(cache, p, j, m, a, b)
+        placed = bodies.placed[shapes.body[i]] | bodies.placed[partner_body(shapes, j)]
+        c.raw_overlap[p] = carry_overlap(cache, p, found, placed, m, pair_slop + overlap_depth * small)
         if ti.static(awake.compact):  # a sleeping world: touching a sleeping body wakes its island
             if m.count > 0 and j >= 0:
                 note_touch(awake, shapes.body[j])
@@ -225,6 +234,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
                 c.restitution[q] = e
                 c.slop[q] = c.raw_slop[p]
                 c.size[q] = c.raw_size[p]
+                c.overlap[q] = c.raw_overlap[p]
     n_shapes = shape_total(shapes, awake)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n_shapes):
@@ -238,8 +248,8 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
 
 @ti.kernel
 def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bodies: ti.template(),
-                  pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, h: ti.f32,
-                  speculative: ti.template(), reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(),
+                  pool: ti.template(), cache: ti.template(), margin: ti.f32, slop: ti.f32, overlap_depth: ti.f32,
+                  h: ti.f32, speculative: ti.template(), reuse_d2: ti.f32, reuse_sin: ti.f32, kinds: ti.template(),
                   awake: ti.template(), dispatch: ti.template()):
-    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, h, speculative, reuse_d2, reuse_sin, kinds,
-                        awake, dispatch)
+    collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, overlap_depth, h, speculative, reuse_d2,
+                        reuse_sin, kinds, awake, dispatch)

@@ -72,6 +72,7 @@ class Edits:
         # a box, capsule or hull may be added (by the caller or the scene's own drops):
         self.anisotropic_reserved = any(k != "sphere" for k in reserve_kinds + drop_kinds)
         self._finalizer = None
+        self.placed = np.arange(len(self.host.body_arrays["inv_mass"]))  # bodies no narrowphase has seen
         self._acquire(self.host.capacities(reserve_pieces=reserve))
         self._update_breakable()
 
@@ -79,8 +80,19 @@ class Edits:
     def _acquire(self, caps) -> None:
         self.buf = buffers.acquire(caps)
         self._finalizer = buffers.release_on_collect(self, self.buf)
-        upload(self.host, self.buf, self.settings.contact_margin)
+        self._upload()
         self.counters = StepCounters(self.buf)
+
+    def _upload(self) -> None:
+        upload(self.host, self.buf, self.settings.contact_margin)
+        self.buf.bodies.mark_placed(self.placed)
+
+    def placed_seen(self) -> None:
+        """A narrowphase has run since the last edit (and will not be redone): the bodies it
+        placed are no longer new (Bodies.mark_placed)."""
+        if len(self.placed):
+            self.placed = self.placed[:0]
+            self.buf.bodies.placed.fill(0)
 
     def close(self) -> None:
         """Give the device buffers back to the process pool (also done when collected)."""
@@ -118,11 +130,15 @@ class Edits:
         old_shape_body = self.host.shape_arrays["body"]
         self.bodies = bodies
         self.host = host_world(dataclasses.replace(self.scene, bodies=bodies), self.settings)
+        kept = np.asarray(body_map)[np.asarray(body_map) >= 0]
+        still_new = np.asarray(body_map)[self.placed]  # placed by an earlier edit, not yet seen
+        self.placed = np.union1d(np.setdiff1d(np.arange(len(self.host.body_arrays["inv_mass"])), kept),
+                                 still_new[still_new >= 0])
         self.kinds = _union_kinds(self.kinds, self.host.kinds)  # a kind once compiled stays: no recompile back
         old = self.buf.caps
         caps = self.host.capacities(pairs=old.pairs, grid_entries=old.grid_entries).covering(old)
         if caps == old:
-            upload(self.host, self.buf, self.settings.contact_margin)
+            self._upload()
         else:
             self.close()
             self._acquire(caps)

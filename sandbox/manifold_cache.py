@@ -18,6 +18,14 @@ than the tolerance. The remembered pose is the one the manifold was found at, no
 last step's, so reuse never drifts further than the tolerance. Feature ids are kept,
 so warm starting matches exactly.
 
+A body put in the world overlapping another (placed so by the scene, dropped or fractured into
+it: deeper than a loaded contact rests, ``overlap_depth``, when the first narrowphase after its
+placement finds the pair) marks that pair ``overlap`` until it comes out to that depth; the mark
+rides with the pair from step to step (``carry_overlap``), and its rows push out no faster than
+``Settings.overlap_push_speed`` (solvers/rows.py, bias_push). Contacts that arrive as gaps and
+are pressed in by an impact or a load are never marked, nor those a rebuilt world (an edit, grown
+buffers) finds again: their depth is the springs' physics.
+
 A pair with no points is skipped too while a bound says it still cannot touch: the
 narrowphase reports a lower bound of the distance (``Manifold.gap``: SAT's separation,
 or the bounding spheres'), and relative motion brings any point of b at most its
@@ -40,6 +48,17 @@ from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose, manifold_poin
 vec3 = ti.math.vec3
 vec4 = ti.math.vec4
 
+OVERLAP_DEFLECTIONS = 2.0
+"""A pair is overlapping when deeper than its slop plus this many ``contact_deflection``s of its
+bound: a loaded contact rests within one (the spring is stiffened to hold its load there), so a
+world rebuilt or restored around a resting pile, whose pairs are all new, marks none of them."""
+
+
+def overlap_depth(settings) -> float:
+    """[1] The depth beyond the slop, as a fraction of a pair's smaller bound, past which a new
+    pair is marked overlapping (OVERLAP_DEFLECTIONS)."""
+    return OVERLAP_DEFLECTIONS * settings.contact_deflection
+
 
 @ti.data_oriented
 class ManifoldCache:
@@ -56,6 +75,7 @@ class ManifoldCache:
         self.rel_rot = ti.Vector.field(4, ti.f32, (2, pc))  # b's orientation in a's frame when found
         self.normal = ti.Vector.field(3, ti.f32, (2, pc))  # in the frame of the shape whose face it is
         self.normal_on_b = ti.field(ti.i32, (2, pc))  # that shape is b (else a)
+        self.overlap = ti.field(ti.i32, (2, pc))  # 1: found overlapping and not yet out (carry_overlap)
         self.on_a = ti.Vector.field(3, ti.f32, (2, pc * MAX_POINTS))  # a's surface point, a's frame [m]
         self.on_b = ti.Vector.field(3, ti.f32, (2, pc * MAX_POINTS))  # b's surface point, b's frame [m]
         self.feature = ti.field(ti.i32, (2, pc * MAX_POINTS))
@@ -82,9 +102,20 @@ def start_step(cache: ti.template()):
 
 
 @ti.func
-def find_reusable(cache: ti.template(), i: ti.i32, j: ti.i32, a: ShapePose, b: ShapePose, margin: ti.f32,
+def old_slot(cache: ti.template(), i: ti.i32, j: ti.i32) -> ti.i32:
+    """Slot of pair (i, j) in last step's half, -1 when the pair is new."""
+    old = 1 - cache.parity[None]
+    found = -1
+    for o in range(cache.first[old, i], cache.last[old, i]):
+        if found < 0 and cache.partner[old, o] == j:
+            found = o
+    return found
+
+
+@ti.func
+def find_reusable(cache: ti.template(), found: ti.i32, a: ShapePose, b: ShapePose, margin: ti.f32,
                   max_d2: ti.f32, max_sin_half: ti.f32) -> ti.i32:
-    """Slot in last step's half of pair (i, j)'s manifold if it can stand for a new one, else -1.
+    """``found`` (old_slot) if the manifold there can stand for a new one, else -1.
 
     With points: the pair's relative pose is still within the tolerance of the one they were
     found at. Without: the shapes were at least ``gap`` apart then, and since then no point of
@@ -95,10 +126,6 @@ def find_reusable(cache: ti.template(), i: ti.i32, j: ti.i32, a: ShapePose, b: S
     The turn is measured as sin(half angle) = |vector part of q_old* q_now|, which float32
     resolves down to ~1e-7 rad; 1 - |q_old . q_now| (its cosine) rounds to 0 below ~5e-4 rad."""
     old = 1 - cache.parity[None]
-    found = -1
-    for o in range(cache.first[old, i], cache.last[old, i]):
-        if found < 0 and cache.partner[old, o] == j:
-            found = o
     slot = -1
     if found >= 0 and max_d2 > 0.0:
         p_ba, q_ba = relative_pose(a, b)
@@ -170,6 +197,25 @@ def remember_manifold(cache: ti.template(), p: ti.i32, j: ti.i32, m: Manifold, a
         cache.on_a[cur, sp] = quat_rotate_inv(a.rot, x - half - a.pos)
         cache.on_b[cur, sp] = quat_rotate_inv(b.rot, x + half - b.pos)
         cache.feature[cur, sp] = m.feature[k]
+
+
+@ti.func
+def carry_overlap(cache: ti.template(), p: ti.i32, found: ti.i32, placed: ti.i32, m: Manifold,
+                  depth: ti.f32) -> ti.i32:
+    """Pair slot p's overlap mark (module docstring), stored for the next step and returned: set
+    when the pair is new (``found`` < 0), one of its bodies was just ``placed``
+    (bodies.Bodies.mark_placed) and a point lies deeper than ``depth`` [m]; kept while one still
+    does, and once cleared never set again for the pair's life."""
+    deep = 0
+    for k in range(m.count):
+        if m.separation[k] < -depth:
+            deep = 1
+    marked = placed
+    if found >= 0:
+        marked = cache.overlap[1 - cache.parity[None], found]
+    mark = marked * deep
+    cache.overlap[cache.parity[None], p] = mark
+    return mark
 
 
 @ti.func

@@ -114,14 +114,25 @@ class Settings:
 
     max_push_speed: float = 3.0
     """[m/s] Cap on the separation speed the position bias may request, so a
-    deep initial overlap separates without an explosion (Box2D v3 uses 3 m/s)."""
+    deep penetration separates without an explosion (Box2D v3 uses 3 m/s)."""
+
+    overlap_push_speed: float = 1.0
+    """[m/s] Cap on the push-out of a pair found already overlapping: deeper than its slop the
+    first step its shapes are paired (placed so, dropped or fractured into another body; an
+    impact arrives as a speculative gap first and is never one), until it comes out
+    (manifold_cache.py; PhysX's per-body maximum depenetration velocity serves the same end).
+    Such a push is no physics to keep, but the Jacobi family's split relax sweep takes it back
+    only in part, so its momentum survives: ten boxes placed 30 % into each other rose at 5.4 m/s
+    under mass splitting at 15 iterations with only ``max_push_speed``, 2.0 m/s with this
+    (docs/method-notes.md). Above ``max_push_speed`` it changes nothing."""
 
     relax_push_speed: float = 0.0
     """[m/s] When > 0: a substep in which a contact's position bias asks for a push-out faster
     than this runs one relax sweep more (``sweeps`` + 1) under the Jacobi family (projected
     Jacobi, mass splitting, block mass splitting), whose split relax sweep takes a push back more
-    slowly than Gauss-Seidel's. Ten boxes placed 30 % into each other rise at 5.4 m/s under mass
-    splitting at 15 iterations, 3.5 m/s at 1 m/s here (docs/method-notes.md, "Limits"). Off (0)
+    slowly than Gauss-Seidel's. Ten boxes placed 30 % into each other rose at 5.4 m/s under mass
+    splitting at 15 iterations, 3.5 m/s at 1 m/s here, before ``overlap_push_speed`` (which
+    holds them to 2.0 m/s at no cost) existed (docs/method-notes.md, "Limits"). Off (0)
     by default: at 1 m/s a falling 1000-box pile's stiffened rows ask for such pushes in up to 9
     of 15 substeps, ~20 % more iteration-loop work while it falls. The push is capped at
     ``max_push_speed``, so a value at or above that never fires. Ignored under the paper
@@ -283,6 +294,7 @@ class Settings:
                                         ("contact_preload_lag", 0.0, math.inf, False),
                                         ("split_relaxation", 0.0, 2.0, False),
                                         ("relax_push_speed", 0.0, math.inf, True),
+                                        ("overlap_push_speed", 0.0, math.inf, False),
                                         ("baumgarte", 0.0, 1.0, True),
                                         ("idle_split", 0.0, 1.0, False),
                                         ("restitution_tolerance", 0.0, math.inf, False)):

@@ -30,9 +30,10 @@ FALLING, WAKING = 1, 2
 
 POINT_FIELDS = ("partner", "feature", "anchor", "lam_n", "lam_t")
 """A history record (persistence.ContactHistory), per contact point."""
-PAIR_FIELDS = ("partner", "count", "gap", "rel_pos", "rel_rot", "normal", "normal_on_b")
+PAIR_FIELDS = ("partner", "count", "gap", "rel_pos", "rel_rot", "normal", "normal_on_b", "overlap")
 SLOT_FIELDS = ("on_a", "on_b", "feature")
-"""A manifold record (manifold_cache.ManifoldCache), per pair, and its per-point slots."""
+"""A manifold record (manifold_cache.ManifoldCache), per pair, and its per-point slots (MAX_POINTS
+per manifold): ``ManifoldCache.<name>``, stored as ``m_<name>``."""
 
 
 @ti.data_oriented
@@ -60,6 +61,7 @@ class SleepStore:
         self.m_rel_rot = ti.Vector.field(4, ti.f32, (2, mc))
         self.m_normal = ti.Vector.field(3, ti.f32, (2, mc))
         self.m_normal_on_b = ti.field(ti.i32, (2, mc))
+        self.m_overlap = ti.field(ti.i32, (2, mc))
         self.m_on_a = ti.Vector.field(3, ti.f32, (2, mc * MAX_POINTS))
         self.m_on_b = ti.Vector.field(3, ti.f32, (2, mc * MAX_POINTS))
         self.m_feature = ti.field(ti.i32, (2, mc * MAX_POINTS))
@@ -154,10 +156,6 @@ def _copy_stored_point(st: ti.template(), to_half: ti.i32, to: ti.i32, from_half
     st.lam_t[to_half, to] = st.lam_t[from_half, o]
 
 
-PAIR_FIELDS = ("partner", "count", "gap", "rel_pos", "rel_rot", "normal", "normal_on_b")
-"""A manifold's per-pair fields: ``manifold_cache.ManifoldCache.<name>``, stored as ``m_<name>``."""
-POINT_SLOT_FIELDS = ("on_a", "on_b", "feature")
-"""Its per-point fields (MAX_POINTS slots per manifold), likewise."""
 
 
 @ti.func
@@ -169,7 +167,7 @@ def _copy_pair(dst: ti.template(), dst_prefix: ti.template(), dh: ti.i32, to: ti
     for name in ti.static(PAIR_FIELDS):
         to_field, from_field = ti.static(getattr(dst, dst_prefix + name), getattr(src, src_prefix + name))
         to_field[dh, to] = from_field[sh, o]
-    for name in ti.static(POINT_SLOT_FIELDS):
+    for name in ti.static(SLOT_FIELDS):
         to_field, from_field = ti.static(getattr(dst, dst_prefix + name), getattr(src, src_prefix + name))
         for s in ti.static(range(MAX_POINTS)):
             to_field[dh, MAX_POINTS * to + s] = from_field[sh, MAX_POINTS * o + s]

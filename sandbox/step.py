@@ -50,6 +50,7 @@ from .effects import CompiledEffects
 from .errors import CapacityError, SimulationError
 from .formulation import sweep_plan
 from .integrate import check_velocities, motion_switch
+from .manifold_cache import overlap_depth
 from .persistence import match_contacts, store_contacts
 from .sleep import after_step, wake_touched
 from .solvers.contact_spring import relax_push_limit, row_params
@@ -221,6 +222,7 @@ class Stepper:
                 if growths > MAX_GROWTH_RETRIES:
                     raise CapacityError("contact buffers kept overflowing after growing; the scene is too dense")
             elif not (sleeping and wake_touched(b, st.contact_margin)):
+                self.edits.placed_seen()
                 return b
 
     def _collide(self, h: float, awake) -> None:
@@ -234,8 +236,9 @@ class Stepper:
                                self.edits.dispatch)
             find_pairs(b.bp, b.shapes, awake, self.edits.dispatch)
         with p.stage("narrowphase"):
-            collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, st.slop, h,
-                          speculation(st), *st.manifold_reuse_bounds(), self.edits.kinds, awake, self.edits.dispatch)
+            collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, st.slop,
+                          overlap_depth(st), h, speculation(st), *st.manifold_reuse_bounds(), self.edits.kinds, awake,
+                          self.edits.dispatch)
 
     def _iterate_by_stage(self, schedule: Schedule, loop: Loop, record_residuals: bool, pause: bool):
         """The iteration loop a launch per phase, each in its stage. With warm starting, gravity

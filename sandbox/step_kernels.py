@@ -26,8 +26,9 @@ from .sleep import rest_and_label_loops
 from .solvers.mass_splitting import build_adjacency_loops, update_support_loops
 from .solvers.rows import prepare_row, respond_row
 from .solvers.substep import iterate_in_order_loops, iterate_shared_loops
-from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, RELAX_SWEEPS, RELAXATION, REUSE_D2, REUSE_SIN,
-                           SLEEP_ANGULAR, SLEEP_LINEAR, SLEEP_TIME, SLOP, STEP, SUBSTEP, SUBSTEPS, WARM_FACTOR)
+from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, OVERLAP_DEPTH, RELAX_SWEEPS, RELAXATION, REUSE_D2,
+                           REUSE_SIN, SLEEP_ANGULAR, SLEEP_LINEAR, SLEEP_TIME, SLOP, STEP, SUBSTEP, SUBSTEPS,
+                           WARM_FACTOR)
 
 
 @ti.kernel
@@ -35,7 +36,7 @@ def begin_and_collide(b: ti.template(), speculative: ti.template(), kinds: ti.te
                       dispatch: ti.template()):
     """Save the good state, clear the error flags, world inertias, broadphase, narrowphase
     (``awake``: of every body, or of a sleeping world's awake ones; awake.py; ``dispatch``: how
-    the heavy loops run, dispatch.py). Margin, slop, step and reuse bounds: ``b.scalars``."""
+    the heavy loops run, dispatch.py). Margin, slop, overlap depth, step and reuse bounds: ``b.scalars``."""
     f = ti.static(b.scalars.f)
     margin, slop, h = f[MARGIN], f[SLOP], f[STEP]
     b.errors.flags[None] = 0
@@ -44,8 +45,8 @@ def begin_and_collide(b: ti.template(), speculative: ti.template(), kinds: ti.te
     update_world_inertia_loops(b.bodies, awake)
     build_dynamic_grid_loops(b.bp, b.shapes, b.bodies, margin, h, speculative, b.errors, awake, dispatch)
     find_pairs_loops(b.bp, b.shapes, awake, dispatch)
-    collide_pairs_loops(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, slop, h, speculative,
-                        f[REUSE_D2], f[REUSE_SIN], kinds, awake, dispatch)
+    collide_pairs_loops(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, slop, f[OVERLAP_DEPTH],
+                        h, speculative, f[REUSE_D2], f[REUSE_SIN], kinds, awake, dispatch)
 
 
 @ti.func

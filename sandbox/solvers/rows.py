@@ -48,7 +48,8 @@ import numpy as np
 import taichi as ti
 
 from ..math3d import plane_basis, quat_rotate, quat_rotate_inv
-from .contact_spring import INV_H, MAX_PUSH, PARAM_COUNT, RELAX_PUSH, RESTITUTION_THRESHOLD, row_spring, supported_load
+from .contact_spring import (INV_H, MAX_PUSH, OVERLAP_PUSH, PARAM_COUNT, RELAX_PUSH, RESTITUTION_THRESHOLD, row_spring,
+                             supported_load)
 from .rolling import respond_rolling, solve_rolling
 from .split_scales import block_scales
 
@@ -181,8 +182,12 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
 @ti.func
 def bias_push(rows: ti.template(), c: ti.template(), q: ti.i32, s: ti.f32) -> ti.f32:
     """[m/s] The biased sweep's target of penetrating point q (separation ``s`` < 0): the
-    spring's push-out, negative, at most ``max_push_speed``."""
-    return ti.max(rows.rate[q] * ti.min(s + c.slop[q], 0.0), -rows.params[MAX_PUSH])
+    spring's push-out, negative, at most ``max_push_speed``, and at most ``overlap_push_speed``
+    while the pair is one found overlapping (manifold_cache.py)."""
+    cap = rows.params[MAX_PUSH]
+    if c.overlap[q]:
+        cap = ti.min(cap, rows.params[OVERLAP_PUSH])
+    return ti.max(rows.rate[q] * ti.min(s + c.slop[q], 0.0), -cap)
 
 
 @ti.func
