@@ -88,11 +88,28 @@ class Edits:
         self.buf.bodies.mark_placed(self.placed)
 
     def placed_seen(self) -> None:
-        """A narrowphase has run since the last edit (and will not be redone): the bodies it
-        placed are no longer new (Bodies.mark_placed)."""
+        """A step has passed since the last edit (its narrowphase will not be redone): the bodies
+        it placed are no longer new (Bodies.mark_placed)."""
         if len(self.placed):
             self.placed = self.placed[:0]
             self.buf.bodies.placed.fill(0)
+
+    def keep_overlaps(self) -> None:
+        """Before the manifold cache is forgotten (an edit, grown buffers, a restored good state):
+        count the dynamic bodies of the pairs still marked overlapping as placed again, so that
+        the next narrowphase marks those pairs again (and only pairs that deep). Reads the
+        contacts only when a pair is marked."""
+        c = self.buf.contacts
+        n = int(c.count[None])
+        if n == 0:
+            return
+        marked = c.overlap.to_numpy()[:n].astype(bool)
+        if not marked.any():
+            return
+        bodies = np.concatenate([c.body_a.to_numpy()[:n][marked], c.body_b.to_numpy()[:n][marked]])
+        bodies = bodies[self.host.body_arrays["inv_mass"][bodies] > 0.0]
+        self.placed = np.union1d(self.placed, bodies)
+        self.buf.bodies.mark_placed(self.placed)
 
     def close(self) -> None:
         """Give the device buffers back to the process pool (also done when collected)."""
@@ -118,6 +135,7 @@ class Edits:
         for k, v in b.bodies.host_state().items():
             self.host.body_arrays[k] = v[:n]
         caps = b.caps.grown(grid_entries=max(b.caps.grid_entries, 2 * entries), pairs=max(b.caps.pairs, 2 * pairs))
+        self.keep_overlaps()
         snap = self._sleep_snapshot()
         self.close()
         self._acquire(caps)
@@ -126,6 +144,7 @@ class Edits:
 
     def _rebuild(self, bodies: list, body_map: np.ndarray) -> None:
         """``body_map``: old body index -> new one (-1: gone), the static carrier included."""
+        self.keep_overlaps()
         snap = self._sleep_snapshot()
         old_shape_body = self.host.shape_arrays["body"]
         self.bodies = bodies

@@ -24,7 +24,8 @@ placement finds the pair) marks that pair ``overlap`` until it comes out to that
 rides with the pair from step to step (``carry_overlap``), and its rows push out no faster than
 ``Settings.overlap_push_speed`` (solvers/rows.py, bias_push). Contacts that arrive as gaps and
 are pressed in by an impact or a load are never marked, nor those a rebuilt world (an edit, grown
-buffers) finds again: their depth is the springs' physics.
+buffers, a restored good state) finds again, but for the marked ones, whose bodies count as placed
+again (edits.Edits.keep_overlaps): their depth is the springs' physics.
 
 A pair with no points is skipped too while a bound says it still cannot touch: the
 narrowphase reports a lower bound of the distance (``Manifold.gap``: SAT's separation,
@@ -51,7 +52,8 @@ vec4 = ti.math.vec4
 OVERLAP_DEFLECTIONS = 2.0
 """A pair is overlapping when deeper than its slop plus this many ``contact_deflection``s of its
 bound: a loaded contact rests within one (the spring is stiffened to hold its load there), so a
-world rebuilt or restored around a resting pile, whose pairs are all new, marks none of them."""
+new world built from a resting stack's poses, whose bodies are all placed, marks none of its
+contacts (a landing pile pressed deeper may have some)."""
 
 
 def overlap_depth(settings) -> float:

@@ -117,10 +117,11 @@ class Settings:
     deep penetration separates without an explosion (Box2D v3 uses 3 m/s)."""
 
     overlap_push_speed: float = 1.0
-    """[m/s] Cap on the push-out of a pair found already overlapping: deeper than its slop the
-    first step its shapes are paired (placed so, dropped or fractured into another body; an
-    impact arrives as a speculative gap first and is never one), until it comes out
-    (manifold_cache.py; PhysX's per-body maximum depenetration velocity serves the same end).
+    """[m/s] Cap on the push-out of a pair found overlapping when one of its bodies is put in the
+    world (by the scene, an edit, a drop, a fracture's pieces): deeper than its slop plus twice
+    ``contact_deflection`` x its bound, until it is out to that depth (manifold_cache.py; an
+    impact between bodies already there arrives as a speculative gap and is never one; PhysX's
+    per-body maximum depenetration velocity serves the same end). Both formulations.
     Such a push is no physics to keep, but the Jacobi family's split relax sweep takes it back
     only in part, so its momentum survives: ten boxes placed 30 % into each other rose at 5.4 m/s
     under mass splitting at 15 iterations with only ``max_push_speed``, 2.0 m/s with this
@@ -188,8 +189,9 @@ class Settings:
     baumgarte: float = 0.8
     """[1] Under ``formulation = "paper"``: the fraction of the penetration beyond ``slop``
     that the velocity solve asks to remove within one step (bias velocity gamma x depth / dt,
-    capped at ``max_push_speed``); the slides use 0.8. Higher corrects faster and pumps more
-    energy into resting stacks; 0 leaves overlaps alone. Scene key: ``[world] baumgarte``."""
+    capped at ``max_push_speed``, or ``overlap_push_speed`` for a placed overlap); the slides
+    use 0.8. Higher corrects faster and pumps more energy into resting stacks; 0 leaves
+    overlaps alone. Scene key: ``[world] baumgarte``."""
 
     sweeps: int = 1
     """[1] Sweeps of the solver per substep, for the biased solve and for the relax

@@ -156,8 +156,6 @@ def _copy_stored_point(st: ti.template(), to_half: ti.i32, to: ti.i32, from_half
     st.lam_t[to_half, to] = st.lam_t[from_half, o]
 
 
-
-
 @ti.func
 def _copy_pair(dst: ti.template(), dst_prefix: ti.template(), dh: ti.i32, to: ti.i32, src: ti.template(),
                src_prefix: ti.template(), sh: ti.i32, o: ti.i32):

@@ -150,6 +150,7 @@ class Stepper:
         else:
             yield from self._solve_in_launches(c, b, awake, plan, h, launch, fused, watch, track, step_count, pause)
         self._check_errors(b, step_count)
+        self.edits.placed_seen()
         if c.effects.sleeping:
             after_step(b, h, s, labelled=fused)
 
@@ -222,7 +223,6 @@ class Stepper:
                 if growths > MAX_GROWTH_RETRIES:
                     raise CapacityError("contact buffers kept overflowing after growing; the scene is too dense")
             elif not (sleeping and wake_touched(b, st.contact_margin)):
-                self.edits.placed_seen()
                 return b
 
     def _collide(self, h: float, awake) -> None:
@@ -305,6 +305,7 @@ class Stepper:
                        "(the solver diverged, or the body is far larger than the typical one)")
         restore_good_state(b.bodies)
         clear_history(b.history)  # this step's impulses are not usable either: no warm start from them
+        self.edits.keep_overlaps()  # the overlaps being pushed out stay marked when the pairs are found again
         clear_cache(b.manifold_cache)  # nor its manifolds (a replay from the good state would not have them)
         raise SimulationError(f"step {step_count}: {problem}; the world was restored to its last good state")
 

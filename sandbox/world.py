@@ -374,8 +374,8 @@ class World:
         """This step's contact points: body_a, body_b, point (world) [m], normal (a to b),
         separation at the step start [m], impulse over the step (normal, tangent1, tangent2)
         [N s; the sum of the substeps' impulses, available after a step with
-        ``track_impulses`` on], manifold index, and overlap (1: the pair was found already
-        overlapping and pushes out no faster than ``Settings.overlap_push_speed``). ``fields``: only these keys (fewer device
+        ``track_impulses`` on], manifold index, and overlap (1: a placed overlap, pushed out no
+        faster than ``Settings.overlap_push_speed``). ``fields``: only these keys (fewer device
         copies); without ``fields`` the impulse is left out unless it is tracked."""
         c, r = self.buf.contacts, self.buf.rows
         n = int(c.count[None])

@@ -10,7 +10,7 @@ import pytest
 
 from sandbox import Scene, Settings, World
 
-from tests.helpers import box_body, scene_dict
+from tests.helpers import assert_same_state, box_body, scene_dict
 
 
 def _sunk_box(solver: str, cap: float) -> tuple[list[float], list[int], World]:
@@ -42,17 +42,19 @@ def test_a_box_placed_in_the_ground_is_marked_until_out_and_rises_no_faster_than
 
 @pytest.mark.parametrize("solver", ["pgs", "mass-splitting"])
 def test_an_impact_is_caught_as_a_gap_and_never_marked(solver):
-    """A cube hitting the ground at 30 m/s is found as a speculative gap the step before it
-    touches: its pair is not new when it is pressed in, however deep."""
-    scene = Scene.from_dict(scene_dict([box_body([0.0, 0.0, 2.0], linear_velocity=[0.0, 0.0, -30.0])],
+    """A cube placed 10 cm above the ground at 30 m/s is found as a speculative gap in the first
+    step, while it still counts as placed: its pair is not new when it touches, nor when it
+    lands again after a bounce (no body is placed by then)."""
+    scene = Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.6], linear_velocity=[0.0, 0.0, -30.0])],
                                        solver=solver, iterations=10))
     world = World(scene, arch="cpu")
     deepest = 0.0
-    for _ in range(60):
+    for _ in range(180):  # mass splitting throws it up (warm start: docs/method-notes.md) and it lands again
         world.step(1)
-        deepest = max(deepest, world.metrics()["max_penetration"])
-        assert world.contacts(fields=["overlap"])["overlap"].sum() == 0
-    assert deepest > world.settings.slop  # it was pressed in
+        c = world.contacts(fields=["overlap", "separation"])
+        deepest = max([deepest, *(-c["separation"])])
+        assert c["overlap"].sum() == 0
+    assert deepest > 0.0  # it touched
 
 
 def test_an_edit_marks_only_the_pairs_of_the_body_it_placed():
@@ -69,3 +71,49 @@ def test_an_edit_marks_only_the_pairs_of_the_body_it_placed():
     of_new = (c["body_a"] == new) | (c["body_b"] == new)
     assert c["overlap"][of_new].all() and of_new.sum() == 4
     assert not c["overlap"][~of_new].any()
+
+
+def test_a_world_built_from_a_settled_stack_marks_none_of_its_contacts():
+    """Every body of a new world is placed, so depth alone decides: the stack's contacts,
+    pressed beyond the slop by its load, rest within the overlap depth."""
+    bodies = [box_body([0.0, 0.0, 0.5 + k]) for k in range(6)]
+    world = World(Scene.from_dict(scene_dict(bodies, solver="mass-splitting", iterations=15)), arch="cpu")
+    world.step(120)
+    settled = dataclasses.replace(world.scene, bodies=world._live_specs())
+    twin = World(settled, arch="cpu")
+    twin.step(1)
+    c = twin.contacts(fields=["overlap", "separation"])
+    assert c["separation"].min() < -twin.settings.slop
+    assert not c["overlap"].any()
+
+
+def test_marks_survive_an_edit_while_the_overlap_is_pushed_out():
+    """An edit forgets the manifolds; the bodies of the pairs still marked count as placed
+    again (Edits.keep_overlaps), so the same pairs are marked after it."""
+    from sandbox.hard_cases import deep_overlap
+
+    world = World(Scene.from_dict(deep_overlap().scene, source="deep_overlap"), solver="mass-splitting",
+                  iterations=15, arch="cpu")
+    world.step(3)
+    before = world.contacts(fields=["overlap", "body_a", "body_b"])
+    assert before["overlap"].sum() > 10
+    world.add_bodies([dataclasses.replace(world.body_specs[0], position=np.array([20.0, 0.0, 0.5]))])
+    world.step(1)
+    after = world.contacts(fields=["overlap", "body_a", "body_b"])
+    pairs = {tuple(p) for p in zip(before["body_a"][before["overlap"] == 1], before["body_b"][before["overlap"] == 1])}
+    still = {tuple(p) for p in zip(after["body_a"][after["overlap"] == 1], after["body_b"][after["overlap"] == 1])}
+    assert still and still <= pairs
+
+
+def test_placed_overlaps_give_the_profiled_bits():
+    """The fused narrowphase (step_kernels.begin_and_collide, its overlap depth from the step
+    scalars) marks what the profiled one does."""
+    from sandbox.hard_cases import deep_overlap
+
+    scene = Scene.from_dict(deep_overlap().scene, source="deep_overlap")
+    states = []
+    for profile in (True, False):
+        world = World(scene, solver="mass-splitting", iterations=8, arch="cpu", profile=profile)
+        world.step(20)
+        states.append(world.state())
+    assert_same_state(*states)
