@@ -53,7 +53,6 @@ class Contacts:
         self.has_points = ti.field(ti.i32, pc + 1)
         self.raw_slop = ti.field(ti.f32, pc)
         self.raw_size = ti.field(ti.f32, pc)
-        self.raw_overlap = ti.field(ti.i32, pc)
         self.point_start = ti.field(ti.i32, pc + 1)
         self.manifold_index = ti.field(ti.i32, pc + 1)
         self.count = ti.field(ti.i32, ())
@@ -186,7 +185,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
             m = collide_kinds(pool, a, b, pair_margin, kinds)
             remember_manifold(cache, p, j, m, a, b)
         placed = bodies.placed[shapes.body[i]] | bodies.placed[partner_body(shapes, j)]
-        c.raw_overlap[p] = carry_overlap(cache, p, found, placed, m, pair_slop + overlap_depth * small)
+        carry_overlap(cache, p, found, placed, m, pair_slop + overlap_depth * small)
         if ti.static(awake.compact):  # a sleeping world: touching a sleeping body wakes its island
             if m.count > 0 and j >= 0:
                 note_touch(awake, shapes.body[j])
@@ -234,7 +233,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
                 c.restitution[q] = e
                 c.slop[q] = c.raw_slop[p]
                 c.size[q] = c.raw_size[p]
-                c.overlap[q] = c.raw_overlap[p]
+                c.overlap[q] = cache.overlap[cache.parity[None], p]  # carry_overlap's mark (close_step flips later)
     n_shapes = shape_total(shapes, awake)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n_shapes):

@@ -149,9 +149,9 @@ class Edits:
         old_shape_body = self.host.shape_arrays["body"]
         self.bodies = bodies
         self.host = host_world(dataclasses.replace(self.scene, bodies=bodies), self.settings)
-        kept = np.asarray(body_map)[np.asarray(body_map) >= 0]
-        still_new = np.asarray(body_map)[self.placed]  # placed by an earlier edit, not yet seen
-        self.placed = np.union1d(np.setdiff1d(np.arange(len(self.host.body_arrays["inv_mass"])), kept),
+        body_map = np.asarray(body_map)
+        still_new = body_map[self.placed]  # placed by an earlier edit, not yet seen
+        self.placed = np.union1d(np.setdiff1d(np.arange(len(self.host.body_arrays["inv_mass"])), body_map),
                                  still_new[still_new >= 0])
         self.kinds = _union_kinds(self.kinds, self.host.kinds)  # a kind once compiled stays: no recompile back
         old = self.buf.caps

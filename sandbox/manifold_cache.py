@@ -202,9 +202,8 @@ def remember_manifold(cache: ti.template(), p: ti.i32, j: ti.i32, m: Manifold, a
 
 
 @ti.func
-def carry_overlap(cache: ti.template(), p: ti.i32, found: ti.i32, placed: ti.i32, m: Manifold,
-                  depth: ti.f32) -> ti.i32:
-    """Pair slot p's overlap mark (module docstring), stored for the next step and returned: set
+def carry_overlap(cache: ti.template(), p: ti.i32, found: ti.i32, placed: ti.i32, m: Manifold, depth: ti.f32):
+    """Pair slot p's overlap mark (module docstring), stored in this step's half: set
     when the pair is new (``found`` < 0), one of its bodies was just ``placed``
     (bodies.Bodies.mark_placed) and a point lies deeper than ``depth`` [m]; kept while one still
     does, and once cleared never set again for the pair's life."""
@@ -215,9 +214,7 @@ def carry_overlap(cache: ti.template(), p: ti.i32, found: ti.i32, placed: ti.i32
     marked = placed
     if found >= 0:
         marked = cache.overlap[1 - cache.parity[None], found]
-    mark = marked * deep
-    cache.overlap[cache.parity[None], p] = mark
-    return mark
+    cache.overlap[cache.parity[None], p] = marked * deep
 
 
 @ti.func
