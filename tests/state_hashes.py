@@ -115,13 +115,20 @@ def state_hash(world) -> str:
 
 
 def cpu_model() -> str:
+    """The CPU's model name with its family and model numbers: a virtual machine may name only
+    the vendor line ("AMD EPYC"), while Taichi's JIT compiles for the instruction sets of the
+    generation underneath (AVX-512 or not), which can change the bits."""
+    fields = {}
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
+            key, _, value = line.partition(":")
+            fields.setdefault(key.strip(), value.strip())
     except OSError:
         pass
-    return platform.processor() or "unknown CPU"
+    name = fields.get("model name") or platform.processor() or "unknown CPU"
+    if "cpu family" in fields and "model" in fields:
+        name += f" (family {fields['cpu family']}, model {fields['model']})"
+    return name
 
 
 def platform_key() -> str:
