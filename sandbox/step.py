@@ -249,7 +249,8 @@ class Stepper:
         from .solvers.rows import BIASED, RELAX, add_step_impulses
 
         b, p, k, sweeps, relax, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.relax, loop.awake
-        fold = schedule.folds_warm_start(loop.warm)
+        # a step with an impact row warm starts every substep in its own pass (substep.folds_this_step)
+        fold = schedule.folds_warm_start(loop.warm) and not int(b.rows.impacts[None])
         # the Jacobi family with Settings.relax_push_speed on: a fast push earns a second relax sweep,
         # which the host learns from a flag read per substep
         watch_push = schedule.visit == BLOCKS and relax_push_limit(self.edits.settings) > 0.0

@@ -79,6 +79,15 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
 
 
 @ti.func
+def folds_this_step(rows: ti.template()) -> ti.i32:
+    """1: a folding schedule's later substeps take gravity and warm start from the previous
+    relax sweep; 0 in a step with an impact row (rows.impacts): its carried impulse is clamped
+    against its bodies' merged velocities (rows.clamp_impact_carry), which a block of the
+    relax sweep, on its own copies, never sees, so the warm start runs as its own pass."""
+    return 1 - rows.impacts[None]
+
+
+@ti.func
 def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
                            warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
                            h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32):
@@ -94,7 +103,7 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
     for it in range(iterations):
         first = 1
         if ti.static(fold):
-            first = 1 if it == 0 else 0
+            first = 1 if it == 0 else 1 - folds_this_step(rows)
         _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
         if ti.static(schedule == BLOCKS):
             rows.fast_push[None] = 0
@@ -107,7 +116,7 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
         for sr in range(n_relax):
             then_warm = 0
             if ti.static(fold):
-                then_warm = 1 if it < iterations - 1 and sr == n_relax - 1 else 0
+                then_warm = folds_this_step(rows) if it < iterations - 1 and sr == n_relax - 1 else 0
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
         if ti.static(track):
             add_step_impulses_loop(rows, c)
@@ -133,7 +142,11 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
-    _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
+    warm_here, warm_next = first, then_warm
+    if ti.static(folds_warm_start(schedule, warm)):  # a step with an impact row does not fold (folds_this_step)
+        warm_here = ti.max(first, 1 - folds_this_step(rows))
+        warm_next = then_warm * folds_this_step(rows)
+    _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, warm_here)
     if ti.static(schedule == BLOCKS):
         rows.fast_push[None] = 0
     _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
@@ -141,10 +154,10 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     if ti.static(schedule == BLOCKS):
         # a fast push: a second relax sweep, which then carries the next substep's warm start
         extra = rows.fast_push[None]
-        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, then_warm * (1 - extra), gravity, h)
-        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, then_warm, gravity, h, extra)
+        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, warm_next * (1 - extra), gravity, h)
+        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, warm_next, gravity, h, extra)
     else:
-        _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
+        _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, warm_next, gravity, h)
     if ti.static(track):
         add_step_impulses_loop(rows, c)
 
@@ -282,7 +295,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
     for it in range(iterations):
         first = 1
         if ti.static(fold):
-            first = 1 if it == 0 else 0
+            first = 1 if it == 0 else 1 - folds_this_step(rows)  # the same for every member: set before the loop
         if first:
             if ti.static(warm):
                 p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, True)
@@ -301,7 +314,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
         for sr in range(n_relax):
             then_warm = 0
             if ti.static(fold):
-                then_warm = 1 if it < iterations - 1 and sr == n_relax - 1 else 0
+                then_warm = folds_this_step(rows) if it < iterations - 1 and sr == n_relax - 1 else 0
             p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
                               RELAX, friction, then_warm, 0, gravity, h)
         if ti.static(track):
