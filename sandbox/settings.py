@@ -141,7 +141,9 @@ class Settings:
 
     restitution_threshold: float = 1.0
     """[m/s] Approach speed below which restitution is ignored, so resting
-    contacts do not bounce forever."""
+    contacts do not bounce forever; a contact closing faster (and touching within the step) is
+    an impact, whose warm start carries only what stops its approach (rows.clamp_impact_carry).
+    Resting and stacked contacts must stay below it, hence > 0."""
 
     restitution_tolerance: float = 1e-3
     """[m/s] The restitution pass repeats its sweep until no bouncing contact's normal
@@ -299,7 +301,8 @@ class Settings:
                                         ("overlap_push_speed", 0.0, math.inf, False),
                                         ("baumgarte", 0.0, 1.0, True),
                                         ("idle_split", 0.0, 1.0, False),
-                                        ("restitution_tolerance", 0.0, math.inf, False)):
+                                        ("restitution_tolerance", 0.0, math.inf, False),
+                                        ("restitution_threshold", 0.0, math.inf, False)):
             value = getattr(self, name)
             above = value >= low if closed else value > low
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and above

@@ -81,8 +81,12 @@ def test_unknown_settings_are_refused():
                                                 ("contact_preload", float("nan"), r"contact_preload must be"),
                                                 ("contact_preload_lag", 0.0, "contact_preload_lag must be a finite "
                                                                               "number > 0"),
-                                                ("contact_preload_lag", float("inf"), "contact_preload_lag must")])
-def test_bad_preload_settings_are_refused(name, value, match):
+                                                ("contact_preload_lag", float("inf"), "contact_preload_lag must"),
+                                                # 0 would make every resting contact an impact, its warm start dropped
+                                                ("restitution_threshold", 0.0, "restitution_threshold must be a finite "
+                                                                               "number > 0"),
+                                                ("restitution_threshold", float("nan"), "restitution_threshold must")])
+def test_bad_contact_settings_are_refused(name, value, match):
     from sandbox import Settings
 
     with pytest.raises(SandboxError, match=match):
