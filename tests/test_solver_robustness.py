@@ -138,11 +138,12 @@ def test_a_resting_block_never_gains_energy(solver, iterations):
     assert peak_gain < 1e-3, f"gained {peak_gain:.3g} J (peak speed {peak_speed:.3g} m/s)"
 
 
-def _bounce(solver, speed, gap, gravity, restitution=1.0):
-    """A unit cube meeting a plane face-down at ``speed`` from ``gap`` above it: (the speed it
-    had just before touching, the fastest it moved away after)."""
+def _bounce(solver, speed, gap, gravity, restitution=1.0, half=(0.5, 0.5, 0.5)):
+    """A box (a unit cube unless ``half`` says otherwise) meeting a plane face-down at ``speed``
+    from ``gap`` above it: (the speed it had just before touching, the fastest it moved away
+    after)."""
     g = -G if gravity else 0.0
-    body = box_body([0, 0, 0.5 + gap], linear_velocity=[0.0, 0.0, -speed], restitution=restitution)
+    body = box_body([0, 0, half[2] + gap], half, linear_velocity=[0.0, 0.0, -speed], restitution=restitution)
     d = scene_dict([body], statics=(dict(plane(), restitution=restitution),), gravity=(0.0, 0.0, g),
                    solver=solver, iterations=10)
     d["effects"] = ["friction", "restitution"]
@@ -180,6 +181,20 @@ def test_an_inelastic_cube_does_not_bounce(solver, speed, gap, gravity):
     impact row's warm start was clamped (rows.clamp_impact_carry), serial PGS 5.8 % of 5 m/s in
     zero gravity."""
     before, after = _bounce(solver, speed, gap, gravity, restitution=0.0)
+    assert before > 3.0 and after < 0.05 * before, f"impact {before:.3f} m/s, rebound {after:.3f}"
+
+
+TALL_BOX_TUMBLES = ("measured 2026-11-26: the Gauss-Seidel order inside the manifold of four close corners leaves "
+                    "the box spinning, and it tips: its centre rises at 0.60 m/s from 10.3 (5.9 %); from a 0.1 m gap "
+                    "1.46 m/s with 8.8 rad/s of spin, 0.06 m/s without warm start (docs/method-notes.md)")
+
+
+@pytest.mark.parametrize("solver", [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=TALL_BOX_TUMBLES))
+                                    if s in ("pgs", "pgs-colored", "block-mass-splitting") else s for s in SOLVERS])
+def test_an_inelastic_tall_box_does_not_bounce(solver):
+    """A 0.2 x 0.2 x 1 m box landing upright at 10 m/s, e = 0: its four corners are nearly one
+    point, so their rows are nearly dependent; it keeps less than 5 % of the impact speed."""
+    before, after = _bounce(solver, 10.0, 0.5, True, restitution=0.0, half=(0.1, 0.1, 0.5))
     assert before > 3.0 and after < 0.05 * before, f"impact {before:.3f} m/s, rebound {after:.3f}"
 
 
