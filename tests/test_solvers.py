@@ -205,6 +205,33 @@ def test_a_fast_push_relaxes_twice_in_every_launch(solver):
     assert not np.array_equal(world.state()["linear_velocity"], states["one"]["linear_velocity"])
 
 
+@pytest.mark.parametrize("solver", ["jacobi", "mass-splitting", "block-mass-splitting"])
+def test_an_impact_and_a_fast_push_in_every_launch(solver):
+    """Both of a substep's extra passes at once: a box thrown at 8 m/s onto the overlapping boxes
+    of the test above lands in an impact step (every substep warm starts in its own pass,
+    substep.folds_this_step) while their push-out earns second relax sweeps; the team-shared
+    loop walks its most phases there. Every launch mode gives the same bits."""
+    from sandbox import Settings
+    from sandbox.hard_cases import deep_overlap
+
+    d = deep_overlap().scene
+    d["body"] = list(d["body"]) + [box_body([0.0, 0.0, 3.3], linear_velocity=[0.0, 0.0, -8.0])]
+    scene = Scene.from_dict(d, source="deep_overlap_and_a_throw")
+    states = {}
+    for launch in ("per-stage", "one", "shared", "per-substep"):
+        world = World(scene, solver=solver, iterations=15, arch="cpu",
+                      settings=Settings(iteration_launch=launch, relax_push_speed=0.5))
+        impact_steps = 0
+        for _ in range(4):
+            world.step(1)
+            impact_steps += int(world.buf.rows.impacts[None])
+        assert impact_steps > 0
+        states[launch] = world.state()
+    for launch in ("one", "shared", "per-substep"):
+        for key in states["per-stage"]:
+            np.testing.assert_array_equal(states["per-stage"][key], states[launch][key], err_msg=f"{launch} {key}")
+
+
 @pytest.mark.parametrize("solver", ["mass-splitting", "pgs-colored"])
 def test_shared_iteration_loop_with_any_team_size(solver, monkeypatch):
     """The shared loop's result does not depend on how many members the team has or on

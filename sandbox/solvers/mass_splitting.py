@@ -386,7 +386,8 @@ def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
                  h: ti.f32, active: ti.i32 = 1):
     """One Jacobi sweep over all blocks from the same velocities, then the per-body merge.
 
-    ``then_warm`` (the last relax sweep of a substep that has a successor): the block's
+    ``then_warm`` (the last relax sweep of a substep that has a successor, in a step without an
+    impact row: substep.folds_this_step): the block's
     impulses are final for this substep, so its slots also carry the next substep's warm
     start, and the gather adds the next substep's gravity: one block pass and two body
     passes fewer per substep than a separate gravity pass and warm-start pass. A biased

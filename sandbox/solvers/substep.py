@@ -12,8 +12,8 @@ them, in two ways:
   iterations is serialized, and Taichi runs every loop nested in it in order on one thread
   (only a kernel's outermost loops are parallel). For the Jacobi family the result is bit
   for bit that of the parallel launches: a block reads only the velocities from before the
-  sweep, writes only its own slots (and, a biased one with a fast push, the same 1 into a
-  shared flag), and each body sums its slots in a fixed order; for
+  sweep, writes only its own slots and rows (and, a biased one with a fast push, the same 1
+  into a shared flag), and each body sums its slots in a fixed order; for
   ``pgs-colored`` the manifolds of one colour share no dynamic body. What is lost is the
   thread parallelism inside a sweep.
 * ``substep_parallel``: ONE launch per substep whose top-level loops (each phase's loops)
@@ -65,7 +65,8 @@ def _start_substep(s: ti.template(), rows: ti.template(), c: ti.template(), bodi
                    awake: ti.template(), kind: ti.template(), warm: ti.template(), friction: ti.template(),
                    gravity: vec3, h: ti.f32, active: ti.i32):
     """Gravity and warm start of a substep (``active`` = 0 skips both: the Jacobi family's
-    later substeps get them from the previous relax sweep, mass_splitting.sweep_blocks)."""
+    later substeps get them from the previous relax sweep, mass_splitting.sweep_blocks, except
+    in a step with an impact row, folds_this_step)."""
     if ti.static(warm):
         warm_start_blocks(s, rows, c, bodies, awake, kind, friction, gravity, h, active)
     else:
@@ -138,7 +139,8 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     fast push, Settings.relax_push_speed; its loops run zero times otherwise), every phase's
     loops parallel, in one launch. ``first``: this substep does its own gravity and warm start;
     ``then_warm``: its last relax sweep does the next one's (both 1 / 0 decided by
-    ``Schedule.iterate`` with ``folds_warm_start``)."""
+    ``Schedule.iterate`` with ``folds_warm_start``; a step with an impact row overrides them
+    here to 1 / 0, folds_this_step)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
