@@ -1,6 +1,6 @@
 """What the impact rows' clamped warm start costs: the same scene stepped by two worlds in one
 process, interleaved in blocks of 10 steps, one as shipped and one whose
-``restitution_threshold`` is so high that no row is an impact (rows.is_impact), so every step
+``restitution_threshold`` is so high that no row is an impact (impact_carry.is_impact), so every step
 folds its warm start into the last relax sweep as before the clamp (solvers/substep.py,
 ``folds_this_step``).
 

@@ -142,7 +142,7 @@ class Settings:
     restitution_threshold: float = 1.0
     """[m/s] Approach speed below which restitution is ignored, so resting
     contacts do not bounce forever; a contact closing faster (and touching within the step) is
-    an impact, whose warm start carries only what stops its approach (rows.clamp_impact_carry).
+    an impact, whose warm start carries only what stops its approach (impact_carry.clamp_impact_carry).
     Resting and stacked contacts must stay below it, hence > 0."""
 
     restitution_tolerance: float = 1e-3

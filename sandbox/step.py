@@ -243,10 +243,11 @@ class Stepper:
     def _iterate_by_stage(self, schedule: Schedule, loop: Loop, record_residuals: bool, pause: bool):
         """The iteration loop a launch per phase, each in its stage. With warm starting, gravity
         rides on the warm-start pass ("iterate"), and for the Jacobi family both ride on the
-        previous substep's last relax sweep, except in a step with an impact row. A generator: with ``pause`` it yields a ``Sweep``
-        after every sweep."""
+        previous substep's last relax sweep, except in a step with an impact row. A generator:
+        with ``pause`` it yields a ``Sweep`` after every sweep."""
         from .integrate import integrate_positions, integrate_velocities
-        from .solvers.rows import BIASED, RELAX, add_step_impulses
+        from .solvers.rows import BIASED, RELAX
+        from .solvers.step_impulses import add_step_impulses
 
         b, p, k, sweeps, relax, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.relax, loop.awake
         # a step with an impact row warm starts every substep in its own pass (substep.folds_this_step)

@@ -23,8 +23,9 @@ from .contacts import collide_pairs_loops
 from .integrate import BIG, check_velocities_loops
 from .persistence import match_contact, store_contacts_loops
 from .sleep import rest_and_label_loops
+from .solvers.impact_carry import clear_impacts
 from .solvers.mass_splitting import build_adjacency_loops, update_support_loops
-from .solvers.rows import prepare_row, respond_row, start_prepare
+from .solvers.rows import prepare_row, respond_row
 from .solvers.substep import iterate_in_order_loops, iterate_shared_loops
 from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, OVERLAP_DEPTH, RELAX_SWEEPS, RELAXATION, REUSE_D2,
                            REUSE_SIN, SLEEP_ANGULAR, SLEEP_LINEAR, SLEEP_TIME, SLOP, STEP, SUBSTEP, SUBSTEPS,
@@ -57,7 +58,7 @@ def prepare_step_loops(b: ti.template(), blk: ti.template(), match_distance: ti.
     (its split counts read both), then the row responses and springs (which read the
     split scales): each stage reads only its own point's earlier results, so these are
     the bits of the separate launches, in one dispatch."""
-    start_prepare(b.rows)
+    clear_impacts(b.rows)
     ti.loop_config(serialize=ti.static(dispatch.serial))
     for q in range(b.contacts.count[None]):
         prepare_row(b.rows, b.contacts, b.bodies, q)

@@ -35,7 +35,7 @@ KNOWN_FAILURES = {
     ("leaning_planks", "mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 0.64 m)",
     ("leaning_planks", "block-mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 1.6 m)",
     # from 8 iterations it stops at the wall since an impact row carries only what stops its approach
-    # (rows.clamp_impact_carry; it rebounded at 35-42 m/s at every count before)
+    # (impact_carry.clamp_impact_carry; it rebounded at 35-42 m/s at every count before)
     ("projectile_200ms_thin_wall", "jacobi@4"): "no tunnelling, but the under-relaxed sphere rebounds at 18.8 m/s "
                                                 "at 4 iterations",
     # the plain stack stands at 4 iterations with mass splitting and Jacobi only because their sweeps keep a

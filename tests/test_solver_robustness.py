@@ -178,7 +178,7 @@ INELASTIC_CASES = [(5.0, 0.3, False), (5.0, 0.3, True), (0.0, 2.0, True), (10.0,
 def test_an_inelastic_cube_does_not_bounce(solver, speed, gap, gravity):
     """e = 0 against e = 0: every schedule keeps less than 5 % of the impact speed, the
     tolerance the elastic bounce is held to. Jacobi and mass splitting kept 20-24 % before an
-    impact row's warm start was clamped (rows.clamp_impact_carry), serial PGS 5.8 % of 5 m/s in
+    impact row's warm start was clamped (impact_carry.clamp_impact_carry), serial PGS 5.8 % of 5 m/s in
     zero gravity."""
     before, after = _bounce(solver, speed, gap, gravity, restitution=0.0)
     assert before > 3.0 and after < 0.05 * before, f"impact {before:.3f} m/s, rebound {after:.3f}"
@@ -200,7 +200,7 @@ def test_an_inelastic_tall_box_does_not_bounce(solver):
 
 def test_only_an_impact_unfolds_the_warm_start():
     """A step warm starts every substep in its own pass only when a row closes faster than the
-    restitution threshold and touches within the step (rows.is_impact): a resting stack never
+    restitution threshold and touches within the step (impact_carry.is_impact): a resting stack never
     does, so it keeps the folded loop; a cube dropped from 2 m does in the steps it lands."""
     stack = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5 + k]) for k in range(3)])),
                   solver="mass-splitting", iterations=8, arch="cpu")

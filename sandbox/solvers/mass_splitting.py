@@ -40,7 +40,7 @@ multiplies the velocity change written to the slot:
   responses, which the weight turns back into full-mass changes (scale x weight = 1 in
   both modes); one pass over the blocks fewer, and no per-point trip through the body's
   inertia. Not in a step with an impact row: its carried impulse is clamped against the
-  merged velocities (rows.clamp_impact_carry), so every substep warm starts in its own pass
+  merged velocities (impact_carry.clamp_impact_carry), so every substep warm starts in its own pass
   (substep.folds_this_step).
 """
 
@@ -52,8 +52,9 @@ from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, PRELOAD_LAG, RELAX_PUSH,
                              RESTITUTION_THRESHOLD, STEP_DT, support_push)
+from .impact_carry import clamp_impact_carry
 from .rolling import rolling_impulse
-from .rows import BIASED, ROLLING, clamp_impact_carry, point_impulse, pushes_fast, solve_point
+from .rows import BIASED, ROLLING, point_impulse, pushes_fast, solve_point
 from .split_scales import block_weights
 
 vec3 = ti.math.vec3
@@ -320,7 +321,7 @@ def _apply_accumulated(rows: ti.template(), c: ti.template(), friction: ti.templ
 def warm_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
                friction: ti.template(), k: ti.i32):
     """Block k's share of the warm start, into its two slots (an impact row's carried impulse
-    clamped first: rows.clamp_impact_carry)."""
+    clamped first: impact_carry.clamp_impact_carry)."""
     start, count, a, b = block_range(c, k, kind)
     for q in range(start, start + count):
         clamp_impact_carry(rows, c, bodies, q)

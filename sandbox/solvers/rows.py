@@ -38,22 +38,22 @@ impulse during the step (also one first caught as a speculative gap: its last su
 may carry none), repeated until the split schedules converge too (solvers/schedule.py);
 its impulse is kept apart (``lam_bounce``) so the next step does not warm start with it.
 
-A substep's impulses warm start the next; an impact row's carry is clamped to what stops its
-approach (``clamp_impact_carry``), or the impulse that stopped the impact throws the bodies
-back and only a Gauss-Seidel sweep takes it back in time.
+A substep's impulses warm start the next; an impact row's carry is clamped first
+(impact_carry.py).
 
 Impulses are per substep; the contact history stores them per step
 (x iterations) so changing the iteration count keeps warm starting consistent.
 When asked (restitution, breakable bodies, ``World.track_impulses``) each substep's
-impulses are summed into ``lam_step``, the step's impulse.
+impulses are summed into ``lam_step``, the step's impulse (step_impulses.py).
 """
 
 import numpy as np
 import taichi as ti
 
 from ..math3d import plane_basis, quat_rotate, quat_rotate_inv
-from .contact_spring import (GRAVITY_REACH, INV_H, MAX_PUSH, OVERLAP_PUSH, PARAM_COUNT, RELAX_PUSH,
-                             RESTITUTION_THRESHOLD, STEP_DT, params_gravity, row_spring, supported_load)
+from .contact_spring import (INV_H, MAX_PUSH, OVERLAP_PUSH, PARAM_COUNT, RELAX_PUSH, RESTITUTION_THRESHOLD, row_spring,
+                             supported_load)
+from .impact_carry import clear_impacts, note_impact
 from .rolling import respond_rolling, solve_rolling
 from .split_scales import block_scales
 
@@ -99,7 +99,7 @@ class Rows:
         self.lam_bounce = ti.field(ti.f32, c)  # [N s] the restitution pass's normal impulse
         self.bounce_residual = ti.field(ti.f32, ())  # [m/s] largest bounce-row residual of the last sweep
         self.fast_push = ti.field(ti.i32, ())  # 1: a biased sweep of this substep pushed a row fast (pushes_fast)
-        self.impacts = ti.field(ti.i32, ())  # 1: a row of this step is an impact (is_impact; set by prepare_row)
+        self.impacts = ti.field(ti.i32, ())  # 1: a row of this step is an impact (impact_carry.note_impact)
         self.residual = ti.field(ti.f32, c)  # squared LCP residual of the point's rows [(m/s)^2]
 
 
@@ -155,8 +155,7 @@ def prepare_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
     rows.k_b[q] = vec3(_share(imb, ib, rb, n), _share(imb, ib, rb, t1), _share(imb, ib, rb, t2))
     v_rel = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
     rows.approach[q] = v_rel.dot(n)
-    if is_impact(rows, c, q):
-        rows.impacts[None] = 1  # every impact row stores the same 1; start_prepare cleared it
+    note_impact(rows, c, q)
     rows.sep_now[q] = c.sep[q]  # the bodies have not moved since the narrowphase
     rows.lam_step[q] = vec3(0.0)
     rows.lam_roll[q] = vec3(0.0)  # not carried from step to step: each step's first substep starts at 0
@@ -164,56 +163,8 @@ def prepare_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
 
 
 @ti.func
-def is_impact(rows: ti.template(), c: ti.template(), q: ti.i32) -> ti.i32:
-    """Point q closed faster than ``restitution_threshold`` when the step began (prepare_row),
-    and touches or closes its gap within the step at that speed plus what gravity adds (a box
-    still falling towards a pile is not an impact yet)."""
-    vn = rows.approach[q]
-    closing = c.sep[q] + vn * rows.params[STEP_DT] - rows.params[GRAVITY_REACH]
-    return ti.cast(vn < -rows.params[RESTITUTION_THRESHOLD] and closing <= 0.0, ti.i32)
-
-
-@ti.func
-def start_prepare(rows: ti.template()):
-    """Before the rows are prepared (a statement at a kernel's top level, ahead of its loop)."""
-    rows.impacts[None] = 0
-
-
-@ti.func
-def clamp_impact_carry(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32):
-    """Before an impact row's impulses are applied again as a substep's warm start: keep at most
-    the normal impulse that stops the approach the bodies have now (their velocities before the
-    warm start, plus the substep's gravity), with full masses; its friction and rolling impulses
-    shrink in proportion, so they stay in their cones.
-
-    Why: the impulse that stopped an impact in one substep is the whole impact. Warm started
-    again it throws the bodies back at their impact speed, and a split sweep takes only part of
-    that back (a quarter-body corner steps short, ``split_relaxation``): an inelastic cube left
-    at 20 % of its impact speed (docs/method-notes.md, "An inelastic impact bounced"). A
-    row still closing keeps its impulse (an under-relaxed Jacobi row needs it to stop a fast
-    projectile); rows that were not closing fast when the step began (resting, stacked) keep
-    the whole warm start (is_impact says which rows are impacts)."""
-    lam = rows.lam[q]
-    if lam[0] > 0.0 and is_impact(rows, c, q):
-        a = c.body_a[q]
-        b = c.body_b[q]
-        g_h = params_gravity(rows) / rows.params[INV_H]
-        va = bodies.lin_vel[a] + bodies.ang_vel[a].cross(rows.ra[q])
-        vb = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rows.rb[q])
-        if bodies.inv_mass[a] > 0.0:
-            va += g_h
-        if bodies.inv_mass[b] > 0.0:
-            vb += g_h
-        stop = ti.max(-(vb - va).dot(c.normal[q]), 0.0) / (rows.k_a[q][0] + rows.k_b[q][0])
-        if stop < lam[0]:
-            ratio = stop / lam[0]
-            rows.lam[q] = lam * ratio
-            rows.lam_roll[q] *= ratio
-
-
-@ti.func
 def prepare_rows_loops(rows: ti.template(), c: ti.template(), bodies: ti.template()):
-    start_prepare(rows)
+    clear_impacts(rows)
     for q in range(c.count[None]):
         prepare_row(rows, c, bodies, q)
 
@@ -442,30 +393,6 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
         if ti.static(friction & ROLLING):
             wa, wb = solve_rolling(rows, c, bodies, q, wa, wb, ln)
     return va, wa, vb, wb
-
-
-@ti.func
-def add_step_impulse(rows: ti.template(), q: ti.i32):
-    """After a substep: point q's impulses of that substep join the step's sum."""
-    rows.lam_step[q] += rows.lam[q]
-
-
-@ti.func
-def add_step_impulses_loop(rows: ti.template(), c: ti.template()):
-    for q in range(c.count[None]):
-        add_step_impulse(rows, q)
-
-
-@ti.kernel
-def add_step_impulses(rows: ti.template(), c: ti.template()):
-    add_step_impulses_loop(rows, c)
-
-
-@ti.kernel
-def add_bounces(rows: ti.template(), c: ti.template()):
-    """After the restitution pass: its impulses join the step's sum (not the warm start)."""
-    for q in range(c.count[None]):
-        rows.lam_step[q][0] += rows.lam_bounce[q]
 
 
 @ti.func

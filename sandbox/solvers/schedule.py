@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import taichi as ti
 
 from ..formulation import PAPER
-from . import SOLVERS, mass_splitting, pgs, substep, team
+from . import SOLVERS, mass_splitting, pgs, step_impulses, substep, team
 from . import rows as contact_rows
 
 _VISIT = {"serial": substep.PGS, "colored": substep.PGS_COLORED, "blocks": substep.BLOCKS}
@@ -151,7 +151,7 @@ class Schedule:
             done += 1
             if rows.bounce_residual[None] <= tolerance:
                 break
-        contact_rows.add_bounces(rows, buf.contacts)
+        step_impulses.add_bounces(rows, buf.contacts)
         return done
 
     # ------------------------------------------------------------------ the fused iteration loop

@@ -40,7 +40,8 @@ from . import team as tm
 from .contact_spring import params_gravity
 from .mass_splitting import gather_body, sweep_block, sweep_blocks, warm_block, warm_start_blocks
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
-from .rows import BIASED, RELAX, add_step_impulse, add_step_impulses_loop
+from .rows import BIASED, RELAX
+from .step_impulses import add_step_impulse, add_step_impulses_loop
 
 vec3 = ti.math.vec3
 
@@ -83,7 +84,7 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
 def folds_this_step(rows: ti.template()) -> ti.i32:
     """1: a folding schedule's later substeps take gravity and warm start from the previous
     relax sweep; 0 in a step with an impact row (rows.impacts): its carried impulse is clamped
-    against its bodies' merged velocities (rows.clamp_impact_carry), which a block of the
+    against its bodies' merged velocities (impact_carry.clamp_impact_carry), which a block of the
     relax sweep, on its own copies, never sees, so the warm start runs as its own pass."""
     return 1 - rows.impacts[None]
 

@@ -1,0 +1,71 @@
+"""An impact row's warm start: between substeps it carries only the impulse that stops its
+approach.
+
+A substep's impulses warm start the next (Box2D v3's soft step, rows.py). The impulse that
+stopped an impact in one substep is the whole impact: applied again it throws the bodies back at
+their impact speed, and only a Gauss-Seidel sweep takes it back in time, so under the split
+schedules an inelastic cube left the ground at 20 % of its impact speed (docs/method-notes.md,
+"An inelastic impact bounced"). Resting and stacked rows are not impacts and keep the whole warm
+start; a step with no impact row folds the Jacobi family's warm start into the last relax sweep
+as before (solvers/substep.py, ``folds_this_step``), bit for bit.
+"""
+
+import taichi as ti
+
+from .contact_spring import GRAVITY_REACH, INV_H, RESTITUTION_THRESHOLD, STEP_DT, params_gravity
+
+
+@ti.func
+def is_impact(rows: ti.template(), c: ti.template(), q: ti.i32) -> ti.i32:
+    """Point q closed faster than ``restitution_threshold`` when the step began (prepare_row),
+    and touches or closes its gap within the step at that speed plus what gravity adds (a box
+    still falling towards a pile is not an impact yet)."""
+    vn = rows.approach[q]
+    closing = c.sep[q] + vn * rows.params[STEP_DT] - rows.params[GRAVITY_REACH]
+    return ti.cast(vn < -rows.params[RESTITUTION_THRESHOLD] and closing <= 0.0, ti.i32)
+
+
+@ti.func
+def clear_impacts(rows: ti.template()):
+    """Before the rows are prepared (a statement at a kernel's top level, ahead of its loop)."""
+    rows.impacts[None] = 0
+
+
+@ti.func
+def note_impact(rows: ti.template(), c: ti.template(), q: ti.i32):
+    """While point q is prepared (its approach just measured): an impact row flags the step, so
+    its later substeps warm start in their own pass (substep.folds_this_step)."""
+    if is_impact(rows, c, q):
+        rows.impacts[None] = 1  # every impact row stores the same 1; clear_impacts cleared it
+
+
+@ti.func
+def clamp_impact_carry(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32):
+    """Before an impact row's impulses are applied again as a substep's warm start: keep at most
+    the normal impulse that stops the approach the bodies have now (their velocities before the
+    warm start, plus the substep's gravity), with full masses; its friction and rolling impulses
+    shrink in proportion, so they stay in their cones.
+
+    Why: the impulse that stopped an impact in one substep is the whole impact. Warm started
+    again it throws the bodies back at their impact speed, and a split sweep takes only part of
+    that back (a quarter-body corner steps short, ``split_relaxation``): an inelastic cube left
+    at 20 % of its impact speed (docs/method-notes.md, "An inelastic impact bounced"). A
+    row still closing keeps its impulse (an under-relaxed Jacobi row needs it to stop a fast
+    projectile); rows that were not closing fast when the step began (resting, stacked) keep
+    the whole warm start (is_impact says which rows are impacts)."""
+    lam = rows.lam[q]
+    if lam[0] > 0.0 and is_impact(rows, c, q):
+        a = c.body_a[q]
+        b = c.body_b[q]
+        g_h = params_gravity(rows) / rows.params[INV_H]
+        va = bodies.lin_vel[a] + bodies.ang_vel[a].cross(rows.ra[q])
+        vb = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rows.rb[q])
+        if bodies.inv_mass[a] > 0.0:
+            va += g_h
+        if bodies.inv_mass[b] > 0.0:
+            vb += g_h
+        stop = ti.max(-(vb - va).dot(c.normal[q]), 0.0) / (rows.k_a[q][0] + rows.k_b[q][0])
+        if stop < lam[0]:
+            ratio = stop / lam[0]
+            rows.lam[q] = lam * ratio
+            rows.lam_roll[q] *= ratio
