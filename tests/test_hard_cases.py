@@ -31,7 +31,14 @@ KNOWN_FAILURES = {
     ("friction_arch", "jacobi@4"): "the arch collapses at 4 iterations",
     ("friction_arch", "mass-splitting@4"): "the arch collapses at 4 iterations (a voussoir flies at 12.9 m/s)",
     ("friction_arch", "block-mass-splitting@4"): "a voussoir slips 25 mm at 4 iterations",
-    ("leaning_planks", "jacobi"): "the card house collapses",
+    # projected Jacobi takes its busiest body's split as its one global factor since 2026-11-26
+    # (mass_splitting.MODE_JACOBI_BOUNDED): the card house stands from 15 iterations instead of flying
+    # apart at every count, and the 27-box block and the overlapping boxes, whose busiest bodies touch at
+    # 68 and 24 points, step as softly as that body everywhere
+    ("leaning_planks", "jacobi@4"): "the card house collapses at 4 iterations (a plank moves 0.52 m, peak 4.0 m/s)",
+    ("resting_block_27", "jacobi@4"): "the 27-box block still rings at 4 iterations (mean KE of the last second "
+                                      "0.088 J, criterion 0.01 J)",
+    ("deep_overlap_30pct", "jacobi@4"): "29 mm still overlapping after 3 s at 4 iterations",
     ("leaning_planks", "mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 0.64 m)",
     ("leaning_planks", "block-mass-splitting@4"): "the card house collapses at 4 iterations (a card moves 1.6 m)",
     # from 8 iterations it stops at the wall since an impact row carries only what stops its approach

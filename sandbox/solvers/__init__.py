@@ -9,7 +9,7 @@ description into kernel calls: no code outside this package compares solver name
 |------------------------|-------------------------|----------|---------------------------------------|
 | pgs                    | serial, in buffer order | manifold | in place (Gauss-Seidel)               |
 | pgs-colored            | colour by colour        | manifold | in place, parallel within a colour    |
-| jacobi                 | all blocks at once      | point    | sum of increments x relaxation        |
+| jacobi                 | all blocks at once      | point    | sum of increments x global relaxation |
 | mass-splitting         | all blocks at once      | point    | split masses, average of sub-bodies   |
 | block-mass-splitting   | all blocks at once      | manifold | split masses per manifold, average    |
 
@@ -76,7 +76,8 @@ class SolverInfo:
         option is not given: ``split_relaxation`` for per-point mass splitting (over-relaxed
         within the convergence proof's 0 < omega < 2: it counts every corner of a face as a
         sub-body, a slack over-relaxation takes back), ``jacobi_relaxation`` for projected
-        Jacobi (plain Jacobi overshoots). None, i.e. 1, for block mass splitting (a body's
+        Jacobi (plain Jacobi overshoots; it is the largest omega, each step bounded by the busiest
+        body's split, mass_splitting.py). None, i.e. 1, for block mass splitting (a body's
         manifolds mostly push it different ways: no slack to take back, and an over-relaxed
         friction arch collapsed) and in place (only the warm start uses the merge)."""
         if self.combine == "jacobi":

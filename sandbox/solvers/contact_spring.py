@@ -63,8 +63,8 @@ from ..formulation import PAPER, baumgarte_rate
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
  UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z, PRELOAD, PRELOAD_LAG,
- RELAX_PUSH, OVERLAP_PUSH) = range(22)
-PARAM_COUNT = 22
+ RELAX_PUSH, OVERLAP_PUSH, SPLIT_BOUND) = range(23)
+PARAM_COUNT = 23
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
 deflection [1], the support average's blend per step [1], the step [s], the up
@@ -74,8 +74,10 @@ formulation.py), the split's share kept for blocks not counted in n_b (Settings.
 gravity [m/s^2] (read by the iteration loop's fused launches, solvers/substep.py), the preload's
 share [1] and its lag [1] (Settings.contact_preload, contact_preload_lag), and the push speed
 that earns a substep a second relax sweep [m/s] (Settings.relax_push_speed; 0: never, and under
-the paper formulation, which has no relax sweeps), and the push-out cap of a pair found overlapping
-[m/s] (Settings.overlap_push_speed)."""
+the paper formulation, which has no relax sweeps), the push-out cap of a pair found overlapping
+[m/s] (Settings.overlap_push_speed), and the relaxation mass splitting's convergence bound takes
+[1] (Settings.split_relaxation; 1, the paper's plain average, under the paper formulation), which
+projected Jacobi's global factor takes for its busiest body (mass_splitting.py)."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
@@ -108,6 +110,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity) -> list[floa
     values[PRELOAD_LAG] = settings.contact_preload_lag
     values[RELAX_PUSH] = relax_push_limit(settings)
     values[OVERLAP_PUSH] = settings.overlap_push_speed
+    values[SPLIT_BOUND] = settings.split_relaxation if settings.formulation != PAPER else 1.0
     return values
 
 

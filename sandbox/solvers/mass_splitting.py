@@ -32,7 +32,15 @@ multiplies the velocity change written to the slot:
   omega, i.e. mass splitting with one global split factor 1/omega instead of each
   body's own count n_b. The step becomes lambda += omega * dlambda (K scaled by
   1/omega), and the impulse written to the body equals the change of the accumulated
-  lambda, so warm starting stays consistent;
+  lambda, so warm starting stays consistent. The ``jacobi`` solver without a ``relaxation``
+  option (``MODE_JACOBI_BOUNDED``) takes the larger of 1/omega and the split mass splitting
+  would give its busiest body, every block counted (n_b / split_relaxation, n_b alone while
+  an impact arrives): one global factor still, but one the split's convergence proof covers.
+  A fixed 1/omega = 4 overshoots any body with more than ~8 blocks pushing it one way, and
+  every sweep then multiplies the error: the card house's planks touch at up to 40 points,
+  and projected Jacobi threw it apart at every iteration count, worst at 30 (1580 m/s at
+  step 5; docs/method-notes.md). An explicit ``relaxation`` is taken as given (plain Jacobi,
+  relaxation 1, is what tests/test_solvers.py shows failing);
 * warm start: scale = 1, weight = 1 (the plain sum of last step's impulses with full
   masses; the PGS solvers use this part too). After the first substep the warm start
   rides on the previous substep's last relax sweep (``sweep_blocks``, ``then_warm``):
@@ -51,7 +59,7 @@ from ..awake import body_id, body_total
 from ..backend import serialize_light_loops
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, PRELOAD_LAG, RELAX_PUSH,
-                             RESTITUTION_THRESHOLD, STEP_DT, support_push)
+                             RESTITUTION_THRESHOLD, SPLIT_BOUND, STEP_DT, support_push)
 from .impact_carry import clamp_impact_carry
 from .rolling import rolling_impulse
 from .rows import BIASED, ROLLING, point_impulse, pushes_fast, solve_point
@@ -63,6 +71,7 @@ PER_POINT = 0
 PER_MANIFOLD = 1
 MODE_JACOBI = 0
 MODE_SPLIT = 1
+MODE_JACOBI_BOUNDED = 2
 
 
 @ti.data_oriented
@@ -83,6 +92,7 @@ class BlockScratch:
         self.scale = ti.field(ti.f32, nb)  # of the blocks counted in n_b
         self.weight = ti.field(ti.f32, nb)
         self.scale_idle = ti.field(ti.f32, nb)  # of the body's other blocks (idle_split)
+        self.global_scale = ti.field(ti.f32, ())  # MODE_JACOBI_BOUNDED's one factor, this step
         self.scanner = Scanner(nb + 1)
 
 
@@ -156,9 +166,9 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
         _, _, a, b = block_range(c, k, kind)
         act = 0
         fresh = 0
-        if ti.static(mode == MODE_SPLIT):
+        if ti.static(mode != MODE_JACOBI):
             act, fresh = _block_can_act(c, rows, k, kind)
-        else:
+        if ti.static(mode != MODE_SPLIT):
             act = 1  # one global factor: every block counted
         start, count, _, _ = block_range(c, k, kind)
         for q in range(start, start + count):
@@ -179,9 +189,13 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
             s.adj[s.adj_start[a] + ti.atomic_add(s.adj_fill[a], 1)] = 2 * k
         if bodies.inv_mass[b] > 0.0:
             s.adj[s.adj_start[b] + ti.atomic_add(s.adj_fill[b], 1)] = 2 * k + 1
+    s.global_scale[None] = 1.0 / omega
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(nb):
         sort_range(s.adj, s.adj_start[i], s.adj_start[i + 1])
+        if ti.static(mode == MODE_JACOBI_BOUNDED):  # max is exact in any order: the same bits
+            relax = rows.params[SPLIT_BOUND] if s.fresh_count[i] == 0 else 1.0
+            ti.atomic_max(s.global_scale[None], ti.cast(s.adj_count[i], ti.f32) / relax)
         if ti.static(mode == MODE_SPLIT):
             # over-relaxation makes up for the split's slack (n_b contacts rarely push one way),
             # so a body's scale never drops below one sub-body: a lone block stays exact
@@ -197,10 +211,16 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
                 s.scale_idle[i] = ti.cast(idle, ti.f32) / share
             s.scale[i] = split
             s.weight[i] = 1.0 / split
-        else:
+        if ti.static(mode == MODE_JACOBI):
             s.scale[i] = 1.0 / omega
             s.weight[i] = omega
             s.scale_idle[i] = 1.0 / omega
+    if ti.static(mode == MODE_JACOBI_BOUNDED):
+        ti.loop_config(serialize=ti.static(serialize_light_loops()))
+        for i in range(nb):
+            s.scale[i] = s.global_scale[None]
+            s.weight[i] = 1.0 / s.global_scale[None]
+            s.scale_idle[i] = s.global_scale[None]
 
 
 @ti.kernel

@@ -36,6 +36,19 @@ shared against one thread, friction_arch (24 pairs) 0.76 / 0.68, mass_ratio_stac
 step's pair count: a world that crossed a pair threshold would compile the other launch in the
 middle of a run (a 0.9-1.7 s stall measured in the web sandbox after a debris drop)."""
 
+
+
+def _merge_mode(info, options: dict) -> int:
+    """How the adjacency scales a block's bodies (mass_splitting.py): each body's own split, the
+    ``jacobi`` solver's global factor bounded by its busiest body's split, or one fixed factor (an
+    explicit Jacobi ``relaxation``; the in-place schedules, whose warm start alone uses the merge)."""
+    if info.splits_masses:
+        return mass_splitting.MODE_SPLIT
+    if info.combine == "jacobi" and options.get("relaxation") is None:
+        return mass_splitting.MODE_JACOBI_BOUNDED
+    return mass_splitting.MODE_JACOBI
+
+
 _FALLBACK = {"shared": "one", "per-substep": "per-stage"}
 """The launch to use instead when a schedule cannot run the one asked for (SolverInfo.launches)."""
 
@@ -65,7 +78,7 @@ class Schedule:
         self.options = dict(options)
         self.visit = _VISIT[self.info.visit]
         self.kind = _BLOCK[self.info.block]
-        self.mode = mass_splitting.MODE_SPLIT if self.info.splits_masses else mass_splitting.MODE_JACOBI
+        self.mode = _merge_mode(self.info, self.options)
         self._color_starts = None  # this step's colour ranges, read once by the first sweep that needs them
         self._color_count = 0
 
