@@ -184,6 +184,11 @@ class Edits:
             sleep.wake(self.buf, self.settings.contact_margin)
         self.sleeping = bool(on)
 
+    def prepare_sleeping(self) -> None:
+        """With the sleeping effect on, compile its fall-asleep and wake kernels now (sleep.prepare)."""
+        if self.sleeping:
+            sleep.prepare(self.buf, self.settings.contact_margin)
+
     def wake(self, indices=None) -> None:
         """Wake the islands of the bodies ``indices`` (checked), or every island (None)."""
         if self.sleeping:

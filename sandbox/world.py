@@ -219,10 +219,12 @@ class World:
 
     def prepare_edits(self) -> None:
         """Compile now the kernels that adding or removing bodies launches (the body list's
-        rebuild, upload and sleeping-island restore), instead of on the first such edit. Changes
-        no bit of the world; the web sandbox calls it while a world loads, so that the first
-        "Drop debris" does not pause the running world to compile."""
+        rebuild, upload and sleeping-island restore), and with sleeping on those of an island
+        falling asleep and waking, instead of when they first happen. Changes no bit of the
+        world; the web sandbox calls it while a world loads, so that the first "Drop debris" or
+        the first island at rest does not pause the running world to compile."""
         self._edits.add([])
+        self._edits.prepare_sleeping()
 
     def remove_bodies(self, indices) -> None:
         """Remove bodies; the bodies after them move down to close the gaps."""

@@ -136,6 +136,38 @@ def test_a_dropped_box_wakes_the_island_it_touches_and_replays_bit_for_bit(tmp_p
     assert result["first_departure"] is None and result["max_difference"] == 0.0
 
 
+def test_preparing_compiles_falling_asleep_and_waking_and_changes_no_bit(tmp_path):
+    """World.prepare_edits runs the fall-asleep and wake kernels once before anything sleeps (the
+    web sandbox: a ~1 s stall at the playground's first island at rest): the prepared world
+    compiles no new instance of either when its columns sleep and the drop wakes one, and every
+    state on the way is the unprepared world's, bit for bit."""
+    from sandbox import sleep
+
+    bodies = "\n".join(f'[[body]]\nshape = "box"\nhalf_extents = [0.5, 0.5, 0.5]\nposition = [{x}, 0.0, {0.5 + k}]'
+                       for x in COLUMNS for k in range(3))
+    path = tmp_path / "columns.toml"
+    path.write_text(SCENE_TOML.format(bodies=bodies))
+    kernels = (sleep._fall_asleep._primal, sleep._wake._primal)
+    runs = []
+    for prepare in (True, False):
+        world = World(Scene.load(path), arch="cpu")
+        if prepare:
+            world.prepare_edits()
+            compiled = [len(k.compiled_kernels) for k in kernels]
+        states, slept, woke = [], False, False
+        for _ in range(SETTLE + 60):
+            world.step(1)
+            states.append((world.state(), world.asleep()))
+            slept |= bool(world.asleep().all())
+            woke |= slept and not world.asleep()[:3].any()
+        assert slept and woke
+        if prepare:  # its own instances (a world's buffers are template arguments) were all there
+            assert [len(k.compiled_kernels) for k in kernels] == compiled
+        runs.append(states)
+    for (state, asleep), (state_plain, asleep_plain) in zip(*runs):
+        assert _same(state, state_plain) and np.array_equal(asleep, asleep_plain)
+
+
 def test_removing_the_bottom_box_wakes_the_column_and_it_falls():
     world = _world()
     world.step(SETTLE)
