@@ -165,7 +165,7 @@ def run_buckling(args) -> None:
           f"(f = 2), {soft:.0f} rad/s about the face's middle (f = 1); asked: {hertz:g} Hz = "
           f"{2 * math.pi * hertz:.0f} rad/s")
     ratios = {"serial PGS, colored PGS": 1.0,  # K~ / K of an interior box's row
-              "projected Jacobi": 1.0 / settings.jacobi_relaxation,
+              "projected Jacobi": max(1.0 / settings.jacobi_relaxation, 8 / settings.split_relaxation),  # its busiest body's
               "mass splitting": max(1.0, 8 / settings.split_relaxation),  # 4 points below + 4 above
               "block mass splitting": 2.0}  # one manifold below, one above
     counts = [int(x) for x in args.iterations.split(",")]

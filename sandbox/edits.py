@@ -184,10 +184,10 @@ class Edits:
             sleep.wake(self.buf, self.settings.contact_margin)
         self.sleeping = bool(on)
 
-    def prepare_sleeping(self) -> None:
-        """With the sleeping effect on, compile its fall-asleep and wake kernels now (sleep.prepare)."""
+    def precompile_sleeping(self) -> None:
+        """With the sleeping effect on, compile its fall-asleep and wake kernels now (sleep.precompile)."""
         if self.sleeping:
-            sleep.prepare(self.buf, self.settings.contact_margin)
+            sleep.precompile(self.buf, self.settings.contact_margin)
 
     def wake(self, indices=None) -> None:
         """Wake the islands of the bodies ``indices`` (checked), or every island (None)."""

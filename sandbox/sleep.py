@@ -308,11 +308,10 @@ def after_step(buf, h: float, settings, labelled: bool = False) -> None:
         _note_grid(sl)
 
 
-def prepare(buf, margin: float) -> None:
-    """Compile now what an island falling asleep and a wake launch, before anything sleeps: a
-    running web world stalled ~1 s at each (the playground's steps 36 and 143). No change: with
-    no body falling, the fall-asleep pass builds the store's other half empty, and twice brings
-    its parity back; with no mark, the wake wakes nobody."""
+def precompile(buf, margin: float) -> None:
+    """Between steps, before anything sleeps: compile what an island falling asleep and a wake
+    launch (a web world stalled ~1 s at each, the playground's steps 37 and 144). No change: no
+    body falling, the store's other half is built empty, twice (parity back); no mark, no wake."""
     sl = buf.sleep
     if int(sl.status[SLEEPING_BODIES]) > 0:
         return

@@ -224,7 +224,7 @@ class World:
         world; the web sandbox calls it while a world loads, so that the first "Drop debris" or
         the first island at rest does not pause the running world to compile."""
         self._edits.add([])
-        self._edits.prepare_sleeping()
+        self._edits.precompile_sleeping()
 
     def remove_bodies(self, indices) -> None:
         """Remove bodies; the bodies after them move down to close the gaps."""

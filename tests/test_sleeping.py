@@ -137,7 +137,7 @@ def test_a_dropped_box_wakes_the_island_it_touches_and_replays_bit_for_bit(tmp_p
 
 
 def test_preparing_compiles_falling_asleep_and_waking_and_changes_no_bit(tmp_path):
-    """World.prepare_edits runs the fall-asleep and wake kernels once before anything sleeps (the
+    """World.prepare_edits runs the fall-asleep and wake kernels before anything sleeps (the
     web sandbox: a ~1 s stall at the playground's first island at rest): the prepared world
     compiles no new instance of either when its columns sleep and the drop wakes one, and every
     state on the way is the unprepared world's, bit for bit."""

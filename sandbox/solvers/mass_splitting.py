@@ -151,7 +151,8 @@ def _block_can_act(c: ti.template(), rows: ti.template(), k: ti.i32, kind: ti.te
 def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.template(), rows: ti.template(),
                           kind: ti.template(), mode: ti.template(), omega: ti.f32):
     """Each dynamic body's sorted block endpoints, its split count and its scale and weight
-    (module docstring). Reads this step's rows and warm-start impulses (the split count)."""
+    (module docstring; under ``MODE_JACOBI_BOUNDED`` every body takes ``global_scale``, the
+    busiest body's split). Reads this step's rows and warm-start impulses (the split count)."""
     nb = bodies.count[None]
     nk = n_blocks(c, kind)
     s.block_count[None] = nk
@@ -189,7 +190,8 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
             s.adj[s.adj_start[a] + ti.atomic_add(s.adj_fill[a], 1)] = 2 * k
         if bodies.inv_mass[b] > 0.0:
             s.adj[s.adj_start[b] + ti.atomic_add(s.adj_fill[b], 1)] = 2 * k + 1
-    s.global_scale[None] = 1.0 / omega
+    if ti.static(mode == MODE_JACOBI_BOUNDED):
+        s.global_scale[None] = 1.0 / omega
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(nb):
         sort_range(s.adj, s.adj_start[i], s.adj_start[i + 1])

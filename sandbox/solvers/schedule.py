@@ -37,7 +37,6 @@ step's pair count: a world that crossed a pair threshold would compile the other
 middle of a run (a 0.9-1.7 s stall measured in the web sandbox after a debris drop)."""
 
 
-
 def _merge_mode(info, options: dict) -> int:
     """How the adjacency scales a block's bodies (mass_splitting.py): each body's own split, the
     ``jacobi`` solver's global factor bounded by its busiest body's split, or one fixed factor (an

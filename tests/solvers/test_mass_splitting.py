@@ -124,6 +124,40 @@ def test_jacobi_scale_is_one_global_factor(buffers, omega):
     np.testing.assert_allclose(scratch.weight.to_numpy()[:BODIES], omega, rtol=2 ** -23)
 
 
+@pytest.mark.parametrize("omega", [0.02, 0.25])
+@pytest.mark.parametrize("impact", [False, True], ids=["resting", "impact"])
+def test_bounded_jacobi_takes_its_busiest_bodys_split_as_its_one_factor(buffers, omega, impact):
+    """The ``jacobi`` solver's default (MODE_JACOBI_BOUNDED): every body gets one factor, the
+    larger of 1 / omega and the busiest dynamic body's split, every block counted: n_b over the
+    split relaxation, n_b alone while one of its blocks is an impact (new and fast). Static
+    bodies own no blocks. omega 0.02 lets the floor win, 0.25 the busiest body."""
+    from sandbox.solvers.contact_spring import RESTITUTION_THRESHOLD, SPLIT_BOUND
+
+    scratch, c, bodies, rows, blocks = buffers
+    a, b = blocks[ms.PER_POINT]
+    counts = np.bincount(np.concatenate([a, b]), minlength=BODIES).astype(np.float64)
+    counts[STATIC] = 0.0
+    relax = np.full(BODIES, 1.8)
+    approach = np.zeros(rows.capacity, np.float32)
+    if impact:  # one point of the busiest body closes at 10 m/s with no warm start
+        q = int(np.flatnonzero((a == counts.argmax()) | (b == counts.argmax()))[0])
+        approach[q] = -10.0
+        relax[[a[q], b[q]]] = 1.0
+    rows.params[SPLIT_BOUND] = 1.8
+    rows.params[RESTITUTION_THRESHOLD] = 1.0
+    rows.approach.from_numpy(approach)
+    try:
+        ms.build_adjacency(scratch, c, bodies, rows, ms.PER_POINT, ms.MODE_JACOBI_BOUNDED, omega)
+    finally:
+        rows.approach.from_numpy(np.zeros(rows.capacity, np.float32))
+    busiest = (counts / relax).max()
+    expected = max(1.0 / omega, busiest)
+    assert (1.0 / omega > busiest) == (omega == 0.02)
+    np.testing.assert_allclose(scratch.scale.to_numpy()[:BODIES], expected, rtol=2 ** -23)
+    np.testing.assert_allclose(scratch.weight.to_numpy()[:BODIES], 1.0 / expected, rtol=2 ** -22)
+    np.testing.assert_allclose(scratch.scale_idle.to_numpy()[:BODIES], expected, rtol=2 ** -23)
+
+
 HALF = np.array([0.3, 0.5, 0.2])  # [m] the box's half extents: no symmetry makes it easy
 MASS = 12.0  # [kg]
 SINK = 1e-3  # [m] the box starts this deep, so the relax rows have no speculative target
