@@ -290,3 +290,29 @@ def test_projected_jacobi_bounds_its_relaxation_by_the_busiest_body(iterations):
     assert busiest > 8
     assert float(bounded.buf.blocks.scale[0]) == pytest.approx(max(4.0, split), rel=1e-6)
     assert float(fixed.buf.blocks.scale[0]) == pytest.approx(4.0, rel=1e-6)
+
+
+@pytest.mark.xfail(strict=True, reason="measured 2026-11-26: rebound 6.55 m/s from 5.49 (+19 %); with a fixed relaxation "
+                   "the same cube comes back at 5.49 with 0.25 or 0.045 (a factor of 22), at 7.34 with 0.03 (33) and "
+                   "6.55 with 0.0225 (44): a large global factor alone over-restitutes this bounce, not yet explained "
+                   "(docs/method-notes.md)")
+def test_a_jacobi_bounce_beside_a_busy_body_keeps_its_speed():
+    """Projected Jacobi's one factor is its busiest body's: beside a resting 27-box block (whose
+    middle box touches at 80 points, a factor of 44) an e = 1 cube from the bounce test above
+    must still come back within 5 % of its impact speed."""
+    cube = box_body([0, 0, 0.8], linear_velocity=[0.0, 0.0, -5.0], restitution=1.0)
+    block = [box_body([10.0 + x, y, 0.5 + z], restitution=0.0) for x in range(3) for y in range(3) for z in range(3)]
+    d = scene_dict([cube] + block, statics=(dict(plane(), restitution=1.0),), gravity=(0.0, 0.0, -G),
+                   solver="jacobi", iterations=10)
+    d["effects"] = ["friction", "restitution"]
+    world = World(Scene.from_dict(d), arch="cpu")
+    before, after, landed = 0.0, 0.0, False
+    for _ in range(120):
+        world.step(1)
+        vz = float(world.state()["linear_velocity"][0, 2])
+        if not landed and vz < 0.0:
+            before = max(before, -vz)
+        elif vz > 0.0:
+            landed = True
+            after = max(after, vz)
+    assert before > 3.0 and after == pytest.approx(before, rel=0.05), f"impact {before:.3f} m/s, rebound {after:.3f}"
