@@ -30,7 +30,7 @@ import dataclasses
 
 import numpy as np
 
-from . import buffers, sleep
+from . import buffers, sleep, sleep_rebuild
 from .awake import EVERY
 from .backend import active_arch
 from .dispatch import dispatch_for
@@ -197,14 +197,14 @@ class Edits:
     def _sleep_snapshot(self):
         if not self.sleeping:
             return None
-        return sleep.snapshot(self.buf, len(self.host.body_arrays["inv_mass"]), self.host.shape_arrays["body"])
+        return sleep_rebuild.snapshot(self.buf, len(self.host.body_arrays["inv_mass"]), self.host.shape_arrays["body"])
 
     def _sleep_restore(self, snap, body_map: np.ndarray, old_shape_body: np.ndarray) -> None:
         if snap is None:
             return
         new_count = len(self.host.body_arrays["inv_mass"])
-        shape_map = sleep.shape_map_for(old_shape_body, self.host.shape_arrays["body"], body_map, new_count)
-        sleep.restore(self.buf, snap, np.asarray(body_map, np.int64), shape_map, self.settings.contact_margin)
+        shape_map = sleep_rebuild.shape_map_for(old_shape_body, self.host.shape_arrays["body"], body_map, new_count)
+        sleep_rebuild.restore(self.buf, snap, np.asarray(body_map, np.int64), shape_map, self.settings.contact_margin)
 
     # ------------------------------------------------------------------ queries
     @property

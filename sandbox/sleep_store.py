@@ -78,7 +78,7 @@ class SleepStore:
     # ------------------------------------------------------------------ host copies (rebuilds)
     def read(self) -> dict:
         """The current half's records as numpy arrays, with the owner shape of each record:
-        what a rebuild of the world carries over (``sleep.snapshot``)."""
+        what a rebuild of the world carries over (``sleep_rebuild.snapshot``)."""
         h = int(self.parity[None])
         pf, pl = self.point_first.to_numpy()[h], self.point_last.to_numpy()[h]
         mf, ml = self.pair_first.to_numpy()[h], self.pair_last.to_numpy()[h]

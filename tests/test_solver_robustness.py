@@ -147,9 +147,14 @@ def _bounce(solver, speed, gap, gravity, restitution=1.0, half=(0.5, 0.5, 0.5)):
     d = scene_dict([body], statics=(dict(plane(), restitution=restitution),), gravity=(0.0, 0.0, g),
                    solver=solver, iterations=10)
     d["effects"] = ["friction", "restitution"]
-    world = World(Scene.from_dict(d), arch="cpu")
+    return _impact_and_rebound(World(Scene.from_dict(d), arch="cpu"))
+
+
+def _impact_and_rebound(world, steps: int = 120):
+    """Step ``world`` whose body 0 falls onto the ground: (the speed it had just before touching,
+    the fastest it moved away after)."""
     before, after, landed = 0.0, 0.0, False
-    for _ in range(120):
+    for _ in range(steps):
         world.step(1)
         vz = float(world.state()["linear_velocity"][0, 2])
         if not landed and vz < 0.0:
@@ -303,14 +308,5 @@ def test_a_jacobi_bounce_beside_a_busy_body_keeps_its_speed():
     d = scene_dict([cube] + block, statics=(dict(plane(), restitution=1.0),), gravity=(0.0, 0.0, -G),
                    solver="jacobi", iterations=10)
     d["effects"] = ["friction", "restitution"]
-    world = World(Scene.from_dict(d), arch="cpu")
-    before, after, landed = 0.0, 0.0, False
-    for _ in range(120):
-        world.step(1)
-        vz = float(world.state()["linear_velocity"][0, 2])
-        if not landed and vz < 0.0:
-            before = max(before, -vz)
-        elif vz > 0.0:
-            landed = True
-            after = max(after, vz)
+    before, after = _impact_and_rebound(World(Scene.from_dict(d), arch="cpu"))
     assert before > 3.0 and after == pytest.approx(before, rel=0.05), f"impact {before:.3f} m/s, rebound {after:.3f}"
