@@ -1,7 +1,8 @@
 """Milliseconds per step of every kernel a step launches, on a settled scene.
 
     python benchmarks/kernel_times.py [--scene pile_1000] [--solver mass-splitting] [--iterations 15]
-                                      [--settle 300] [--steps 30] [--launch auto]
+                                      [--settle 300] [--steps 30] [--launch auto] [--arch cpu]
+                                      [--tasks]
 
 Each kernel that ``World.step`` launches (the fused set-up kernels of step_kernels.py,
 the iteration loop, and the per-stage kernels where they still run) is wrapped with a
@@ -9,12 +10,18 @@ device sync before and after, so its time is its own. The syncs cost a little: c
 the sum with the synced wall time, and the unsynced ms/step printed last. Works on the
 tree it is run from (so an older tree can be timed with the same script, as in
 docs/bench.md "Second pass").
+
+``--tasks`` also switches on Taichi's own kernel profiler (``TI_KERNEL_PROFILER=1``) and prints
+the time of each offloaded task (a kernel's top-level loop or serial block: ``name_cN_0_kernel_K``,
+K counting them in source order) over the timed steps. On CUDA that is how the position update's
+~1 ms launch was found (docs/bench.md, "On a GPU").
 """
 
 from __future__ import annotations
 
 import argparse
 import collections
+import os
 import time
 
 import taichi as ti
@@ -48,7 +55,11 @@ def main() -> None:
     ap.add_argument("--launch", default="auto", help="Settings.iteration_launch")
     ap.add_argument("--reuse-distance", type=float, default=None,
                     help="Settings.manifold_reuse_distance [m] (0: every pair through SAT and clipping)")
+    ap.add_argument("--arch", default="cpu", choices=("cpu", "cuda"))
+    ap.add_argument("--tasks", action="store_true", help="Taichi's kernel profiler: time of each offloaded task")
     a = ap.parse_args()
+    if a.tasks:
+        os.environ["TI_KERNEL_PROFILER"] = "1"  # read by ti.init (backend.init) from the environment
     total = collections.defaultdict(float)
     timing = [False]
 
@@ -80,12 +91,14 @@ def main() -> None:
     settings = Settings(iteration_launch=a.launch)
     if a.reuse_distance is not None:
         settings = settings.replace(manifold_reuse_distance=a.reuse_distance)
-    world = World(Scene.load(resolve_scene(a.scene)), solver=a.solver, iterations=a.iterations, arch="cpu",
+    world = World(Scene.load(resolve_scene(a.scene)), solver=a.solver, iterations=a.iterations, arch=a.arch,
                   settings=settings)
     world.step(a.settle)
     b = world.buf
     print(f"{a.scene} {a.solver} {a.iterations} iterations, after {a.settle} steps: pairs {b.bp.pair_total[None]}, "
           f"contact points {b.contacts.count[None]}, manifolds {b.contacts.manifold_count[None]}")
+    if a.tasks:
+        ti.profiler.clear_kernel_profiler_info()
     timing[0] = True
     ti.sync()
     t = time.perf_counter()
@@ -93,6 +106,8 @@ def main() -> None:
     ti.sync()
     wall = time.perf_counter() - t
     timing[0] = False
+    if a.tasks:
+        ti.profiler.print_kernel_profiler_info("count")
     for name, s in sorted(total.items(), key=lambda kv: -kv[1]):
         print(f"  {name:22s} {1e3 * s / a.steps:7.3f} ms")
     print(f"  {'sum':22s} {1e3 * sum(total.values()) / a.steps:7.3f} ms   wall (synced) {1e3 * wall / a.steps:7.3f} ms")

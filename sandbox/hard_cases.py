@@ -212,14 +212,14 @@ def all_cases() -> list[Case]:
             leaning_planks()]
 
 
-def run_case(case: Case, solver: str, iterations: int, steps: int | None = None) -> CaseResult:
-    """Simulate one case: whether it passed, the figures, the peak speed. Non-finite state
-    counts as a failure."""
+def run_case(case: Case, solver: str, iterations: int, steps: int | None = None, arch: str = "cpu") -> CaseResult:
+    """Simulate one case on ``arch``: whether it passed, the figures, the peak speed. Non-finite
+    state counts as a failure."""
     from . import Scene, World
     from .errors import SimulationError
 
     scene = Scene.load(case.scene) if isinstance(case.scene, Path) else Scene.from_dict(case.scene, source=case.name)
-    world = World(scene, solver=solver, iterations=iterations, arch="cpu")
+    world = World(scene, solver=solver, iterations=iterations, arch=arch)
     run = Run(start=world.state())
     try:
         for k in range(steps or case.steps):

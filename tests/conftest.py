@@ -1,4 +1,5 @@
-"""Shared fixtures: Taichi runs once per test process, on the CPU (CI has no GPU).
+"""Shared fixtures: Taichi runs once per test process, on the CPU (CI has no GPU), or on the
+backend ``SANDBOX_TEST_ARCH`` names (tests/helpers.TEST_ARCH).
 
 Plain helpers (scene dicts, state comparisons) live in tests/helpers.py; the names below are
 re-exported for test files that import them from here.
@@ -8,7 +9,7 @@ import os
 
 import pytest
 
-from tests.helpers import box_body, plane, scene_dict  # noqa: F401  (re-exported, see above)
+from tests.helpers import TEST_ARCH, box_body, plane, scene_dict  # noqa: F401  (re-exported, see above)
 
 os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
 
@@ -17,7 +18,7 @@ os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
 def taichi_cpu():
     from sandbox import backend
 
-    return backend.init(os.environ.get("SANDBOX_TEST_ARCH", "cpu"))
+    return backend.init(TEST_ARCH)
 
 
 MAX_TEST_WORKERS = 4

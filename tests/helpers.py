@@ -8,8 +8,14 @@ where its scene comes from.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
+TEST_ARCH = os.environ.get("SANDBOX_TEST_ARCH", "cpu")
+"""The Taichi backend of this test run (``SANDBOX_TEST_ARCH=cuda pytest ...`` on a GPU machine):
+the session fixture starts it and every test world runs on it. Bitwise repeatability is
+promised on the CPU only, so the state-hash and dispatch tests stay on ``cpu``."""
 G = 9.81
 """[m/s^2] the magnitude of ``scene_dict``'s default gravity."""
 DT = 1.0 / 60.0

@@ -7,7 +7,7 @@ import pytest
 
 from sandbox import Scene, World
 
-from tests.helpers import box_body, plane, scene_dict
+from tests.helpers import TEST_ARCH, box_body, plane, scene_dict
 
 G = 9.81
 DT = 1.0 / 60.0
@@ -17,7 +17,7 @@ def test_free_fall_matches_symplectic_euler():
     """No contacts: x_{n+1} = x_n + h v_{n+1}, v_{n+1} = v_n + h g, reproduced in float32, with
     h = dt / iterations (each solver iteration is a substep of the step)."""
     scene = Scene.from_dict(scene_dict([box_body([0, 0, 100.0], linear_velocity=[1.0, 0.0, 2.0])], statics=()))
-    world = World(scene, solver="pgs", iterations=4, arch="cpu")
+    world = World(scene, solver="pgs", iterations=4, arch=TEST_ARCH)
     x = np.array([0, 0, 100.0], np.float32)
     v = np.array([1.0, 0.0, 2.0], np.float32)
     g = np.array([0, 0, -G], np.float32)
@@ -42,7 +42,7 @@ def test_motion_below_float32_resolution_is_not_rounded_away():
     speed = 1e-5
     body = box_body(start.tolist(), linear_velocity=[speed, 0.0, 0.0])
     world = World(Scene.from_dict(scene_dict([body], statics=(), gravity=(0.0, 0.0, 0.0))), solver="pgs",
-                  iterations=15, arch="cpu")
+                  iterations=15, arch=TEST_ARCH)
     world.step(600)
     moved = world.buf.bodies.exact_positions()[0] - start
     # each substep's update rounds at the remainder's own float32 step (at most half a step
@@ -61,7 +61,7 @@ def test_resting_box_carries_weight_per_step(solver):
     """A settled box on a plane: total normal impulse = m g dt each step (rapier total_contact_impulse)."""
     mass = 1000.0
     scene = Scene.from_dict(scene_dict([box_body([0, 0, 0.5])]))
-    world = World(scene, solver=solver, iterations=20, arch="cpu")
+    world = World(scene, solver=solver, iterations=20, arch=TEST_ARCH)
     world.track_impulses = True
     world.step(120)
     c = world.contacts()
@@ -93,7 +93,7 @@ def _down_slope_displacement(world, angle, steps):
 @pytest.mark.parametrize("solver", ["pgs", "mass-splitting"])
 def test_box_sticks_below_friction_angle(solver):
     angle, mu = 0.25, 0.5  # tan(0.25) = 0.255 < 0.5
-    world = World(_slope_scene(angle, mu), solver=solver, iterations=20, arch="cpu")
+    world = World(_slope_scene(angle, mu), solver=solver, iterations=20, arch=TEST_ARCH)
     world.step(30)
     moved = _down_slope_displacement(world, angle, 120)
     assert abs(moved) < 1e-3  # [m] over 2 s: creep, not sliding
@@ -102,7 +102,7 @@ def test_box_sticks_below_friction_angle(solver):
 @pytest.mark.parametrize("solver", ["pgs", "mass-splitting"])
 def test_box_slides_above_friction_angle_with_coulomb_acceleration(solver):
     angle, mu = 0.4, 0.2  # tan(0.4) = 0.42 > 0.2
-    world = World(_slope_scene(angle, mu), solver=solver, iterations=20, arch="cpu")
+    world = World(_slope_scene(angle, mu), solver=solver, iterations=20, arch=TEST_ARCH)
     world.step(30)
     v0 = world.state()["linear_velocity"][0].copy()
     steps = 60
@@ -118,7 +118,7 @@ def test_torque_free_spin_keeps_angular_momentum():
     """An asymmetric box spinning near its stable axis in zero gravity: |L| and L stay put."""
     body = box_body([0, 0, 0], half=(0.1, 0.3, 0.6), angular_velocity=[0.3, 0.2, 6.0])
     scene = Scene.from_dict(scene_dict([body], statics=(), gravity=(0, 0, 0)))
-    world = World(scene, solver="pgs", iterations=4, arch="cpu")
+    world = World(scene, solver="pgs", iterations=4, arch=TEST_ARCH)
 
     def momentum():
         st = world.state()

@@ -9,14 +9,14 @@ from hypothesis import strategies as st
 
 from sandbox import SandboxError, Scene, World
 
-from tests.helpers import box_body, scene_dict
+from tests.helpers import TEST_ARCH, box_body, scene_dict
 
 BAD_NUMBERS = st.sampled_from([math.nan, math.inf, -math.inf, "x", None, [1.0, 2.0], [[1, 2, 3]], True])
 
 
 @pytest.fixture(scope="module")
 def world():
-    w = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5]), box_body([0, 0, 3.0], static=True)])), arch="cpu")
+    w = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5]), box_body([0, 0, 3.0], static=True)])), arch=TEST_ARCH)
     w.step(2)
     return w
 
@@ -64,7 +64,7 @@ def test_bad_solver_and_step_arguments_are_refused(world, call):
 
 def test_world_needs_a_scene():
     with pytest.raises(SandboxError, match="needs a Scene"):
-        World({"body": []}, arch="cpu")
+        World({"body": []}, arch=TEST_ARCH)
 
 
 def test_unknown_settings_are_refused():

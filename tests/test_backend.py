@@ -1,6 +1,8 @@
-"""The CPU backend's thread placement (backend.pin_cpu_workers)."""
+"""The backend: the CPU's thread placement (backend.pin_cpu_workers), and test worlds that follow the
+session's backend (tests/helpers.TEST_ARCH)."""
 
 import os
+from pathlib import Path
 
 import pytest
 
@@ -22,3 +24,18 @@ def test_taichi_workers_are_pinned_one_per_cpu():
     single = [os.sched_getaffinity(int(t)) for t in os.listdir("/proc/self/task")]
     pinned = sorted(next(iter(a)) for a in single if len(a) == 1)
     assert pinned == sorted(cpus)  # exactly the workers, one CPU each; nothing else touched
+
+
+CPU_BOUND_TESTS = {"state_hashes.py", "test_dispatch.py", "test_backend.py"}
+"""Test files that mean the CPU: bitwise state hashes and the CPU loop dispatch. The web test
+starts its server with ``--arch cpu`` on its own command line."""
+
+
+def test_test_worlds_follow_the_session_arch():
+    """``SANDBOX_TEST_ARCH=cuda pytest`` must run the suite on CUDA: a world pinned to ``cpu``
+    in a CUDA session raises at once (on the first GPU run, 187 tests failed that way)."""
+    tests = Path(__file__).parent
+    pinned = [f"{p.relative_to(tests)}:{n}" for p in sorted(tests.rglob("*.py")) if p.name not in CPU_BOUND_TESTS
+              for n, line in enumerate(p.read_text().splitlines(), 1)
+              if 'arch="cpu"' in line and "test_app.py" not in p.name]
+    assert not pinned, f"use arch=TEST_ARCH (tests/helpers.py): {pinned}"

@@ -7,13 +7,13 @@ import pytest
 
 from sandbox import SandboxError, Scene, World
 from sandbox.scene.rotations import quat_to_matrix
-from tests.helpers import box_body, plane, scene_dict, sphere_body
+from tests.helpers import TEST_ARCH, box_body, plane, scene_dict, sphere_body
 
 
 def _world(bodies, effects=("friction", "restitution"), statics=None, gravity=(0.0, 0.0, -9.81)):
     d = scene_dict(bodies, statics=statics if statics is not None else (plane(),), gravity=gravity)
     d["effects"] = list(effects)
-    return World(Scene.from_dict(d), arch="cpu")
+    return World(Scene.from_dict(d), arch=TEST_ARCH)
 
 
 def test_frictionless_spheres_compile_neither_friction_rows_nor_the_gyroscopic_step():
@@ -53,7 +53,7 @@ def test_adding_a_body_recompiles_for_what_it_needs():
 def test_reserved_kinds_compile_what_a_later_plank_needs_from_the_start():
     """The web sandbox's worlds (reserve_kinds): the gyroscopic step is in before the plank comes,
     so its arrival compiles nothing; spheres alone reserve nothing of it; an unknown kind is refused."""
-    world = World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch="cpu",
+    world = World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch=TEST_ARCH,
                   reserve_kinds=("box", "hull"))
     before = world.compiled_effects
     assert before.gyroscopic
@@ -61,10 +61,10 @@ def test_reserved_kinds_compile_what_a_later_plank_needs_from_the_start():
     world.prepare_edits()
     world.add_bodies([plank])
     assert world.compiled_effects == before
-    spheres = World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch="cpu", reserve_kinds=("sphere",))
+    spheres = World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch=TEST_ARCH, reserve_kinds=("sphere",))
     assert not spheres.compiled_effects.gyroscopic
     with pytest.raises(SandboxError, match="unknown shape kind"):
-        World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch="cpu", reserve_kinds=("cone",))
+        World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch=TEST_ARCH, reserve_kinds=("cone",))
 
 
 def test_cubes_and_spheres_turn_freely_without_the_gyroscopic_step():

@@ -8,6 +8,7 @@ import pytest
 from sandbox import Scene, SandboxError, Settings, World
 from sandbox.recording import Recorder, replay
 from sandbox.scene.library import SCENES_DIR
+from tests.helpers import TEST_ARCH
 
 DT = 1.0 / 60.0
 
@@ -20,7 +21,7 @@ def _overlapping_box(depth: float, formulation: str, **settings) -> World:
         "static": [{"shape": "plane", "normal": [0, 0, 1], "offset": 0.0, "friction": 0.5}],
         "body": [{"shape": "box", "half_extents": [0.5, 0.5, 0.5], "position": [0.0, 0.0, 0.5 - depth]}],
     })
-    return World(scene, arch="cpu", settings=Settings(formulation=formulation, **settings))
+    return World(scene, arch=TEST_ARCH, settings=Settings(formulation=formulation, **settings))
 
 
 def test_paper_baumgarte_step_pushes_out_at_gamma_depth_over_dt_and_keeps_the_momentum():
@@ -56,9 +57,9 @@ def test_soft_step_takes_most_of_its_push_out_velocity_back():
 def test_formulation_comes_from_the_scene_the_constructor_and_the_setter():
     data = {"world": {"formulation": "paper", "baumgarte": 0.5},
             "body": [{"shape": "sphere", "radius": 0.5, "position": [0.0, 0.0, 2.0]}]}
-    world = World(Scene.from_dict(data), arch="cpu")
+    world = World(Scene.from_dict(data), arch=TEST_ARCH)
     assert (world.formulation, world.settings.baumgarte) == ("paper", 0.5)
-    assert World(Scene.from_dict(data), arch="cpu", formulation="soft-step").formulation == "soft-step"
+    assert World(Scene.from_dict(data), arch=TEST_ARCH, formulation="soft-step").formulation == "soft-step"
     world.set_formulation("soft-step")
     assert world.formulation == "soft-step" and world.settings.baumgarte == 0.5
     with pytest.raises(SandboxError, match="unknown formulation"):
@@ -103,7 +104,7 @@ time = 0.25
 kind = "formulation"
 formulation = "paper"
 """, encoding="utf-8")
-    world = World(Scene.load(path), arch="cpu")
+    world = World(Scene.load(path), arch=TEST_ARCH)
     world.step(20)
     assert world.formulation == "paper" and world.applied_events[0][1].kind == "formulation"
     rec = Recorder(world, path)  # begun under "paper": the replay must start from "soft-step"
@@ -112,13 +113,13 @@ formulation = "paper"
         rec.capture()
     out = tmp_path / "stack.sbrec"
     rec.save(out)
-    result = replay(out)
+    result = replay(out, arch=TEST_ARCH)
     assert result["first_departure"] is None and result["max_difference"] == 0.0
 
 
 def _paper_pyramid_ke(solver: str, **options) -> float:
     """Mean kinetic energy [J] over the last 60 of 600 frames of pyramid_20 from rest, paper, 15 iterations."""
-    world = World(Scene.load(SCENES_DIR / "pyramid_20.toml"), solver=solver, iterations=15, arch="cpu",
+    world = World(Scene.load(SCENES_DIR / "pyramid_20.toml"), solver=solver, iterations=15, arch=TEST_ARCH,
                   formulation="paper", **options)
     energies = []
     for _ in range(600):

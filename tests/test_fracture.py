@@ -21,6 +21,7 @@ from sandbox.polytope import penetration_depth  # noqa: E402
 from sandbox.scene import EventSpec, load_scene, scene_from_dict  # noqa: E402
 from sandbox.scene.rotations import quat_to_matrix  # noqa: E402
 from sandbox.settings import Settings  # noqa: E402
+from tests.helpers import TEST_ARCH
 
 HOST_RTOL = 1e-9
 """[1] Momentum and mass after a fracture in float64: exact up to the rounding of a few hundred
@@ -254,7 +255,7 @@ def make_world(scene_path):
     worlds = []
 
     def make(**kwargs):
-        world = World(load_scene(scene_path), arch="cpu", reserve_pieces=16, **kwargs)
+        world = World(load_scene(scene_path), arch=TEST_ARCH, reserve_pieces=16, **kwargs)
         worlds.append(world)
         return world
 
@@ -387,7 +388,7 @@ def test_breakable_body_rests_then_breaks_on_impact_and_replays(make_world, scen
     path = tmp_path / "impact.sbrec"
     rec.save(path)
     world.close()
-    result = replay(path)
+    result = replay(path, arch=TEST_ARCH)
     assert result["first_departure"] is None and result["max_difference"] == 0.0
 
 

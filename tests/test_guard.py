@@ -5,7 +5,7 @@ import pytest
 
 from sandbox import Scene, Settings, SimulationError, World
 
-from tests.helpers import box_body, scene_dict
+from tests.helpers import TEST_ARCH, box_body, scene_dict
 
 
 def _failing_step_keeps_state(world) -> str:
@@ -23,7 +23,7 @@ def test_diverging_step_names_stage_and_body_and_keeps_last_good_state():
     # two stacked tall boxes under plain Jacobi (relaxation 1) blow up within one step
     tall = (0.2, 0.2, 1.0)
     scene = Scene.from_dict(scene_dict([box_body([0, 0, 1.0], half=tall), box_body([0, 0, 3.0], half=tall)]))
-    world = World(scene, solver="jacobi", iterations=1, arch="cpu", relaxation=1.0,
+    world = World(scene, solver="jacobi", iterations=1, arch=TEST_ARCH, relaxation=1.0,
                   settings=Settings(warm_start=0.0, sweeps=400))
     text = _failing_step_keeps_state(world)
     assert "non-finite" in text and "body" in text and "last good state" in text
@@ -38,7 +38,7 @@ def test_runaway_body_stops_the_step_before_the_broadphase_overflows():
     """A finite but absurd speed (a diverged solver) would make the body's swept bounds cover
     billions of grid cells; the step stops with a message instead of overflowing or hanging."""
     scene = Scene.from_dict(scene_dict([box_body([0, 0, 0.5]), box_body([3, 0, 0.5])]))
-    world = World(scene, solver="pgs", iterations=4, arch="cpu")
+    world = World(scene, solver="pgs", iterations=4, arch=TEST_ARCH)
     world.step(2)
     world.set_velocity([1], angular=[0.0, 0.0, 3e7])
     text = _failing_step_keeps_state(world)
@@ -53,7 +53,7 @@ def test_colored_pgs_with_restitution_steps_on_the_cpu():
     it reads the colour ranges itself (a bouncing box, pgs-colored, CPU)."""
     bouncy = box_body([0, 0, 1.5], restitution=0.5)
     scene = Scene.from_dict(scene_dict([bouncy], solver="pgs-colored", iterations=8))
-    world = World(scene, arch="cpu")
+    world = World(scene, arch=TEST_ARCH)
     world.step(60)
     z = world.state()["position"][0, 2]
     assert np.isfinite(z) and 0.45 < z < 1.6

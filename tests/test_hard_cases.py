@@ -10,6 +10,7 @@ import pytest
 
 from sandbox import SOLVERS
 from sandbox.hard_cases import all_cases, run_case
+from tests.helpers import TEST_ARCH
 
 CASES = {case.name: case for case in all_cases()}
 
@@ -84,7 +85,7 @@ def pytest_generate_tests(metafunc):
 
 def test_hard_case(combo):
     name, solver, iterations = combo
-    r = run_case(CASES[name], solver, iterations)
+    r = run_case(CASES[name], solver, iterations, arch=TEST_ARCH)
     assert r.passed, f"{name} with {solver} at {iterations} iterations: {r.figures}"
 
 
@@ -94,7 +95,7 @@ def test_resting_block_at_extreme_iteration_counts(request, solver, iterations):
     """The resting block at 1 and at 500 iterations: finite always; at rest with 500."""
     if not request.config.getoption("--stress"):
         pytest.skip("stress only (pytest --stress): 500 substeps per step")
-    r = run_case(CASES["resting_block_27"], solver, iterations)
+    r = run_case(CASES["resting_block_27"], solver, iterations, arch=TEST_ARCH)
     passed, figures = r.passed, r.figures
     assert "non-finite" not in figures, figures
     if iterations == 500:
@@ -108,5 +109,5 @@ def test_long_run_of_a_resting_block(request, solver):
     """10 000 steps (2 min 47 s simulated) of the resting block: finite and still at rest."""
     if not request.config.getoption("--stress"):
         pytest.skip("stress only (pytest --stress): 10 000 steps")
-    r = run_case(CASES["resting_block_27"], solver, 15, steps=10_000)
+    r = run_case(CASES["resting_block_27"], solver, 15, steps=10_000, arch=TEST_ARCH)
     assert r.passed, r.figures

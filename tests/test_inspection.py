@@ -6,10 +6,11 @@ import pytest
 
 from sandbox import SandboxError, Scene, World
 from sandbox.scene.library import SCENES_DIR
+from tests.helpers import TEST_ARCH
 
 
 def _world(solver: str, **kwargs) -> World:
-    world = World(Scene.load(SCENES_DIR / "stack_20.toml"), solver=solver, iterations=4, arch="cpu", **kwargs)
+    world = World(Scene.load(SCENES_DIR / "stack_20.toml"), solver=solver, iterations=4, arch=TEST_ARCH, **kwargs)
     world.step(30)  # warm-started, resting
     return world
 

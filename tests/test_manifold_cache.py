@@ -10,7 +10,7 @@ import pytest
 from sandbox import Scene, Settings, World
 from sandbox.errors import SandboxError
 
-from tests.helpers import box_body, scene_dict
+from tests.helpers import TEST_ARCH, box_body, scene_dict
 
 
 def _stack_scene():
@@ -23,10 +23,10 @@ def _stack_scene():
 
 def test_a_resting_scene_reuses_every_manifold_and_they_match_a_fresh_narrowphase():
     scene = _stack_scene()
-    world = World(scene, arch="cpu")
+    world = World(scene, arch=TEST_ARCH)
     world.step(120)
     # a twin world at exactly this state (positions with their remainders) has no manifolds to reuse
-    twin = World(dataclasses.replace(scene, bodies=world._live_specs()), arch="cpu")
+    twin = World(dataclasses.replace(scene, bodies=world._live_specs()), arch=TEST_ARCH)
     world.step(1)
     twin.step(1)
     m = world.metrics()
@@ -49,7 +49,7 @@ def test_a_resting_scene_reuses_every_manifold_and_they_match_a_fresh_narrowphas
 
 def test_a_sliding_box_goes_through_the_narrowphase_every_step_until_it_stops():
     body = box_body([0.0, 0.0, 0.5], linear_velocity=[2.0, 0.0, 0.0])
-    world = World(Scene.from_dict(scene_dict([body], solver="pgs", iterations=10)), arch="cpu")
+    world = World(Scene.from_dict(scene_dict([body], solver="pgs", iterations=10)), arch=TEST_ARCH)
     for _ in range(20):  # friction 0.5 stops 2 m/s in ~0.41 s (24 steps); until then >1 mm per step
         world.step(1)
         assert world.metrics()["manifolds_reused"] == 0
@@ -62,8 +62,8 @@ def test_reuse_off_and_on_agree_on_a_resting_stack():
     """Reuse changes how contacts are found, not the physics: the stack settles to the same
     heights either way (to well under the slop)."""
     scene = _stack_scene()
-    on = World(scene, arch="cpu")
-    off = World(scene, arch="cpu", settings=Settings(manifold_reuse_distance=0.0))
+    on = World(scene, arch=TEST_ARCH)
+    off = World(scene, arch=TEST_ARCH, settings=Settings(manifold_reuse_distance=0.0))
     on.step(300)
     off.step(300)
     assert off.metrics()["manifolds_reused"] == 0
@@ -72,7 +72,7 @@ def test_reuse_off_and_on_agree_on_a_resting_stack():
 
 
 def test_a_rebuild_forgets_the_manifolds():
-    world = World(_stack_scene(), arch="cpu")
+    world = World(_stack_scene(), arch=TEST_ARCH)
     world.step(60)
     assert world.metrics()["manifolds_reused"] == 7
     world.add_bodies([dataclasses.replace(world.body_specs[0], position=np.array([-5.0, 0.0, 0.5]))])
@@ -102,7 +102,7 @@ def test_a_pair_kept_apart_by_its_gap_still_meets():
     standing = box_body([0.0, 0.0, 0.5])
     sliding = box_body([-1.08, 0.0, 0.5], linear_velocity=[0.3, 0.0, 0.0], friction=0.0)
     world = World(Scene.from_dict(scene_dict([standing, sliding], solver="mass-splitting", iterations=15)),
-                  arch="cpu")
+                  arch=TEST_ARCH)
     skipped_apart, touching, deepest = 0, 0, 0.0
     for _ in range(40):
         world.step(1)
@@ -128,7 +128,7 @@ def test_a_turning_pair_kept_apart_is_searched_again_before_it_touches():
     spinning = box_body([0.0, 0.0, 0.0], angular_velocity=[0.0, 0.0, 0.3])
     fixed = box_body([1.05, 0.0, 0.0], static=True)
     world = World(Scene.from_dict(scene_dict([spinning, fixed], statics=(), gravity=(0.0, 0.0, 0.0),
-                                             solver="mass-splitting", iterations=15)), arch="cpu")
+                                             solver="mass-splitting", iterations=15)), arch=TEST_ARCH)
     skipped_apart, touching, deepest = 0, 0, 0.0
     for _ in range(60):
         world.step(1)

@@ -10,14 +10,14 @@ import pytest
 
 from sandbox import Scene, Settings, World
 
-from tests.helpers import assert_same_state, box_body, scene_dict
+from tests.helpers import TEST_ARCH, assert_same_state, box_body, scene_dict
 
 
 def _sunk_box(solver: str, cap: float) -> tuple[list[float], list[int], World]:
     """A unit cube placed 30 cm into the ground, 120 steps: its upward speed and its marked
     contact points after every step."""
     scene = Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.2])], solver=solver, iterations=10))
-    world = World(scene, arch="cpu", settings=Settings(overlap_push_speed=cap))
+    world = World(scene, arch=TEST_ARCH, settings=Settings(overlap_push_speed=cap))
     rise, marked = [], []
     for _ in range(120):
         world.step(1)
@@ -47,7 +47,7 @@ def test_an_impact_is_caught_as_a_gap_and_never_marked(solver):
     lands again after a bounce (no body is placed by then)."""
     scene = Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.6], linear_velocity=[0.0, 0.0, -30.0])],
                                        solver=solver, iterations=10))
-    world = World(scene, arch="cpu")
+    world = World(scene, arch=TEST_ARCH)
     deepest = 0.0
     for _ in range(180):  # mass splitting throws it up (warm start: docs/method-notes.md) and it lands again
         world.step(1)
@@ -62,7 +62,7 @@ def test_an_edit_marks_only_the_pairs_of_the_body_it_placed():
     step; only the pair of the box dropped 20 cm into the top of a settled stack is marked, not
     the stack's own contacts, pressed beyond the slop by its load."""
     bodies = [box_body([0.0, 0.0, 0.5 + k]) for k in range(6)]
-    world = World(Scene.from_dict(scene_dict(bodies, solver="mass-splitting", iterations=15)), arch="cpu")
+    world = World(Scene.from_dict(scene_dict(bodies, solver="mass-splitting", iterations=15)), arch=TEST_ARCH)
     world.step(120)
     assert world.contacts(fields=["separation"])["separation"].min() < -world.settings.slop
     [new] = world.add_bodies([dataclasses.replace(world.body_specs[5], position=np.array([0.0, 0.0, 6.3]))])
@@ -77,10 +77,10 @@ def test_a_world_built_from_a_settled_stack_marks_none_of_its_contacts():
     """Every body of a new world is placed, so depth alone decides: the stack's contacts,
     pressed beyond the slop by its load, rest within the overlap depth."""
     bodies = [box_body([0.0, 0.0, 0.5 + k]) for k in range(6)]
-    world = World(Scene.from_dict(scene_dict(bodies, solver="mass-splitting", iterations=15)), arch="cpu")
+    world = World(Scene.from_dict(scene_dict(bodies, solver="mass-splitting", iterations=15)), arch=TEST_ARCH)
     world.step(120)
     settled = dataclasses.replace(world.scene, bodies=world._live_specs())
-    twin = World(settled, arch="cpu")
+    twin = World(settled, arch=TEST_ARCH)
     twin.step(1)
     c = twin.contacts(fields=["overlap", "separation"])
     assert c["separation"].min() < -twin.settings.slop
@@ -93,7 +93,7 @@ def test_marks_survive_an_edit_while_the_overlap_is_pushed_out():
     from sandbox.hard_cases import deep_overlap
 
     world = World(Scene.from_dict(deep_overlap().scene, source="deep_overlap"), solver="mass-splitting",
-                  iterations=15, arch="cpu")
+                  iterations=15, arch=TEST_ARCH)
     world.step(3)
     before = world.contacts(fields=["overlap", "body_a", "body_b"])
     assert before["overlap"].sum() > 10
@@ -113,7 +113,7 @@ def test_placed_overlaps_give_the_profiled_bits():
     scene = Scene.from_dict(deep_overlap().scene, source="deep_overlap")
     states = []
     for profile in (True, False):
-        world = World(scene, solver="mass-splitting", iterations=8, arch="cpu", profile=profile)
+        world = World(scene, solver="mass-splitting", iterations=8, arch=TEST_ARCH, profile=profile)
         world.step(20)
         states.append(world.state())
     assert_same_state(*states)

@@ -9,6 +9,7 @@ import pytest
 
 from sandbox import Scene, SandboxError, World
 from sandbox.recording import MAGIC, Recorder, load, replay
+from tests.helpers import TEST_ARCH
 
 SCENE_PATH = Path(__file__).resolve().parent.parent / "scenes" / "scripted_drop_300.toml"
 
@@ -16,7 +17,7 @@ SCENE_PATH = Path(__file__).resolve().parent.parent / "scenes" / "scripted_drop_
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
     d = tmp_path_factory.mktemp("rec")
-    world = World(Scene.load(SCENE_PATH), arch="cpu")
+    world = World(Scene.load(SCENE_PATH), arch=TEST_ARCH)
     rec = Recorder(world, SCENE_PATH)
     for _ in range(90):
         world.step(1)
@@ -32,7 +33,7 @@ def test_scripted_drop_replays_bit_for_bit(recorded):
     header, frames = load(path)
     assert len(frames) == 91 and frames[0].shape == (300, 7) and frames[-1].shape == (320, 7)
     assert [e[0] for e in header["events"]] == [60]
-    result = replay(path)
+    result = replay(path, arch=TEST_ARCH)
     assert result["first_departure"] is None and result["max_difference"] == 0.0
 
 
@@ -53,7 +54,7 @@ def test_edited_recording_departs_at_the_edited_frame(recorded, tmp_path):
         raw += struct.pack("<I", len(f)) + data.tobytes()
         prev = bits
     edited.write_bytes(prefix + zlib.compress(raw))
-    result = replay(edited)
+    result = replay(edited, arch=TEST_ARCH)
     assert result["first_departure"] == 45
 
 
@@ -74,7 +75,7 @@ def test_recording_started_mid_run_replays_through_the_logged_edits(tmp_path):
     from sandbox.scene.spec import EventSpec
 
     scene = Scene.load(SCENE_PATH)
-    world = World(scene, solver="mass-splitting", iterations=8, arch="cpu")
+    world = World(scene, solver="mass-splitting", iterations=8, arch=TEST_ARCH)
     world.step(20)
     world.apply_event(EventSpec(time=0.0, kind="solver", solver="pgs", iterations=6))
     world.apply_event(EventSpec(time=0.0, kind="gravity", gravity=np.array([0.0, 1.0, -9.81])))
@@ -89,5 +90,5 @@ def test_recording_started_mid_run_replays_through_the_logged_edits(tmp_path):
     rec.save(path)
     header, frames = load(path)
     assert header["start_step"] == 25 and header["start_events"] == 2 and header["solver"] == "mass-splitting"
-    result = replay(path)
+    result = replay(path, arch=TEST_ARCH)
     assert result["first_departure"] is None and result["max_difference"] == 0.0

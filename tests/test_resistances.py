@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sandbox import SOLVERS, Scene, World
-from tests.helpers import G, box_body, plane, scene_dict, sphere_body
+from tests.helpers import G, TEST_ARCH, box_body, plane, scene_dict, sphere_body
 
 RADIUS = 0.5
 DT = 1.0 / 60.0
@@ -16,7 +16,7 @@ DT = 1.0 / 60.0
 def _world(bodies, statics=(plane(),), gravity=(0.0, 0.0, -G), solver="pgs", world=None):
     d = scene_dict(bodies, statics=statics, gravity=gravity, solver=solver)
     d["world"].update(world or {})
-    return World(Scene.from_dict(d), arch="cpu")
+    return World(Scene.from_dict(d), arch=TEST_ARCH)
 
 
 def _rolling_sphere(**extra) -> dict:

@@ -9,13 +9,14 @@ import pytest
 
 from sandbox import Scene, World
 from tests import state_hashes as sh
+from tests.helpers import TEST_ARCH
 
 SCENES = sorted((Path(__file__).resolve().parent.parent / "scenes").glob("*.toml"))
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.stem for p in SCENES])
 def test_scene_runs_60_steps(path):
-    world = World(Scene.load(path), arch="cpu")
+    world = World(Scene.load(path), arch=TEST_ARCH)
     world.step(60)
     st = world.state()
     for key, value in st.items():

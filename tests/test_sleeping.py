@@ -8,7 +8,7 @@ from sandbox import Scene, World
 from sandbox.recording import Recorder, replay
 from sandbox.scene.spec import EventSpec
 
-from tests.helpers import box_body, scene_dict
+from tests.helpers import TEST_ARCH, box_body, scene_dict
 
 COLUMNS = (-3.0, 0.0, 3.0)  # three columns of three unit boxes, 2 m apart: three islands
 SLEEPING = ["friction", "restitution", "sleeping"]
@@ -48,7 +48,7 @@ def _columns():
 def _world(effects=SLEEPING, solver="pgs"):
     d = scene_dict(_columns(), solver=solver)
     d["effects"] = list(effects)
-    return World(Scene.from_dict(d), arch="cpu")
+    return World(Scene.from_dict(d), arch=TEST_ARCH)
 
 
 def _same(a: dict, b: dict) -> bool:
@@ -113,7 +113,7 @@ def test_a_dropped_box_wakes_the_island_it_touches_and_replays_bit_for_bit(tmp_p
     path.write_text(SCENE_TOML.format(bodies=bodies))
     runs = []
     for _ in range(2):
-        world = World(Scene.load(path), arch="cpu")
+        world = World(Scene.load(path), arch=TEST_ARCH)
         recorder = Recorder(world, path)  # frame 0, then one frame per step
         for _ in range(SETTLE):
             world.step(1)
@@ -132,7 +132,7 @@ def test_a_dropped_box_wakes_the_island_it_touches_and_replays_bit_for_bit(tmp_p
     assert _same(*runs)
     recorded = tmp_path / "columns.sbrec"
     recorder.save(recorded)
-    result = replay(recorded)
+    result = replay(recorded, arch=TEST_ARCH)
     assert result["first_departure"] is None and result["max_difference"] == 0.0
 
 
@@ -150,7 +150,7 @@ def test_preparing_compiles_falling_asleep_and_waking_and_changes_no_bit(tmp_pat
     kernels = (sleep._fall_asleep._primal, sleep._wake._primal)
     runs = []
     for prepare in (True, False):
-        world = World(Scene.load(path), arch="cpu")
+        world = World(Scene.load(path), arch=TEST_ARCH)
         if prepare:
             world.prepare_edits()
             compiled = [len(k.compiled_kernels) for k in kernels]

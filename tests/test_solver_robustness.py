@@ -18,6 +18,7 @@ from sandbox import SOLVERS, Scene, World
 from sandbox.scene.library import SCENES_DIR
 
 from .conftest import box_body, plane, scene_dict
+from tests.helpers import TEST_ARCH
 
 G = 9.81
 
@@ -67,7 +68,7 @@ def _settle(world, steps: int):
 def test_split_schedules_keep_the_pyramid_standing(solver, iterations, steps):
     """pyramid_20: after 600 steps (the issue's horizon) and still after 1800 (30 s, long
     enough for a slow instability to show) the top box is within 5 cm and the pyramid is at rest."""
-    world = World(Scene.load(SCENES_DIR / "pyramid_20.toml"), solver=solver, iterations=iterations, arch="cpu")
+    world = World(Scene.load(SCENES_DIR / "pyramid_20.toml"), solver=solver, iterations=iterations, arch=TEST_ARCH)
     start, end, ke = _settle(world, steps)
     top = int(np.argmax(start[:, 2]))
     moved = float(np.linalg.norm(end[top] - start[top]))
@@ -79,7 +80,7 @@ def test_the_web_default_scene_stands_at_4_iterations_with_mass_splitting():
     splitting blew the playground's pyramid apart. 1800 steps (30 s) with sleeping off, so that
     nothing rests by decree: the 78-box pyramid's top stays within 5 cm and the scene comes to rest
     (measured 2026-11-25: 22.8 mm, 5.6e-8 J; 121 mm before the preload)."""
-    world = World(Scene.load(SCENES_DIR / "playground.toml"), solver="mass-splitting", iterations=4, arch="cpu")
+    world = World(Scene.load(SCENES_DIR / "playground.toml"), solver="mass-splitting", iterations=4, arch=TEST_ARCH)
     world.set_effects([e for e in world.effects if e != "sleeping"])
     start, end, ke = _settle(world, 1800)
     pyramid = [i for i in range(len(start)) if "'pyramid_" in world.body_name(i)]
@@ -107,7 +108,7 @@ STACK_SWAY = {
 def test_the_20_box_stack_stays_standing_at_few_iterations(solver, iterations):
     """stack_20, 900 steps (15 s): no box leaves its column by more than 5 cm and the stack is at
     rest at the end; few iterations may sag, a statically stable stack must not fall."""
-    world = World(Scene.load(SCENES_DIR / "stack_20.toml"), solver=solver, iterations=iterations, arch="cpu")
+    world = World(Scene.load(SCENES_DIR / "stack_20.toml"), solver=solver, iterations=iterations, arch=TEST_ARCH)
     start, end, ke = _settle(world, 900)
     drift = float(np.linalg.norm((end - start)[:, :2], axis=1).max())
     assert drift < PYRAMID_TOP_TOLERANCE and ke < PYRAMID_RESTING_KE, f"drift {drift:.3f} m, KE {ke:.3g} J"
@@ -125,7 +126,7 @@ def test_a_resting_block_never_gains_energy(solver, iterations):
     """A 2 x 2 x 3 block of unit boxes (1000 kg) placed 1 mm apart, 300 steps: kinetic plus
     potential energy never rises above its start, whatever the schedule and the count."""
     bodies = [box_body([1.001 * x, 1.001 * y, 0.5 + 1.001 * z]) for x in range(2) for y in range(2) for z in range(3)]
-    world = World(Scene.from_dict(scene_dict(bodies)), solver=solver, iterations=iterations, arch="cpu")
+    world = World(Scene.from_dict(scene_dict(bodies)), solver=solver, iterations=iterations, arch=TEST_ARCH)
     masses = np.full(len(bodies), 1000.0)
     e0, _ = _mechanical_energy(world, masses)
     peak_gain, peak_speed = -np.inf, 0.0
@@ -147,7 +148,7 @@ def _bounce(solver, speed, gap, gravity, restitution=1.0, half=(0.5, 0.5, 0.5)):
     d = scene_dict([body], statics=(dict(plane(), restitution=restitution),), gravity=(0.0, 0.0, g),
                    solver=solver, iterations=10)
     d["effects"] = ["friction", "restitution"]
-    return _impact_and_rebound(World(Scene.from_dict(d), arch="cpu"))
+    return _impact_and_rebound(World(Scene.from_dict(d), arch=TEST_ARCH))
 
 
 def _impact_and_rebound(world, steps: int = 120):
@@ -208,14 +209,14 @@ def test_only_an_impact_unfolds_the_warm_start():
     restitution threshold and touches within the step (impact_carry.is_impact): a resting stack never
     does, so it keeps the folded loop; a cube dropped from 2 m does in the steps it lands."""
     stack = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5 + k]) for k in range(3)])),
-                  solver="mass-splitting", iterations=8, arch="cpu")
+                  solver="mass-splitting", iterations=8, arch=TEST_ARCH)
     resting = []
     for _ in range(60):
         stack.step(1)
         resting.append(int(stack.buf.rows.impacts[None]))
     assert not any(resting)
     drop = World(Scene.from_dict(scene_dict([box_body([0, 0, 2.5])])), solver="mass-splitting", iterations=8,
-                 arch="cpu")
+                 arch=TEST_ARCH)
     flags = []
     for _ in range(60):
         drop.step(1)
@@ -230,7 +231,7 @@ def test_the_step_impulse_sums_the_substeps(iterations):
     """A box at rest takes m g dt from the plane each step, however many substeps share it
     (it was reported as the last substep's impulse times their count)."""
     world = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5])])), solver="pgs", iterations=iterations,
-                  arch="cpu")
+                  arch=TEST_ARCH)
     world.track_impulses = True
     world.step(120)
     total = world.contacts(["impulse"])["impulse"][:, 0].sum()
@@ -239,7 +240,7 @@ def test_the_step_impulse_sums_the_substeps(iterations):
 
 
 def test_impulses_are_only_read_while_tracked():
-    world = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5])])), arch="cpu")
+    world = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5])])), arch=TEST_ARCH)
     world.step(1)
     assert "impulse" not in world.contacts()
     with pytest.raises(Exception, match="track_impulses"):
@@ -251,7 +252,7 @@ def test_the_split_count_leaves_out_contacts_that_cannot_act():
     touches, carries load nor closes within the step) is split in 4 (its ground corners), not 8."""
     wall = {"shape": "box", "half_extents": [0.5, 0.5, 0.5], "position": [1.01, 0.0, 0.5], "static": True}
     world = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5]), wall])), solver="mass-splitting",
-                  iterations=4, arch="cpu")
+                  iterations=4, arch=TEST_ARCH)
     world.step(30)
     c = world.contacts(["body_a", "body_b", "separation"])
     touching_box = [(a == 0 or b == 0) for a, b in zip(c["body_a"], c["body_b"])]
@@ -267,7 +268,7 @@ def test_support_points_that_only_come_near_take_no_share_of_the_preload():
     over the last half, drift < 2 %."""
     from sandbox.hard_cases import run_case, scaled_stack
 
-    result = run_case(scaled_stack(0.001), "mass-splitting", 8)
+    result = run_case(scaled_stack(0.001), "mass-splitting", 8, arch=TEST_ARCH)
     assert result.passed, result.figures
 
 
@@ -280,14 +281,14 @@ def test_projected_jacobi_bounds_its_relaxation_by_the_busiest_body(iterations):
     from sandbox.hard_cases import FLYING_SPEED, all_cases, run_case
 
     case = {c.name: c for c in all_cases()}["leaning_planks"]
-    result = run_case(case, "jacobi", iterations)
+    result = run_case(case, "jacobi", iterations, arch=TEST_ARCH)
     assert result.peak_speed < FLYING_SPEED, result.figures
     if iterations == 30:
         assert result.passed, result.figures
 
     scene = Scene.load(SCENES_DIR / "leaning_planks.toml")
-    bounded = World(scene, solver="jacobi", iterations=iterations, arch="cpu")
-    fixed = World(scene, solver="jacobi", iterations=iterations, arch="cpu", relaxation=0.25)
+    bounded = World(scene, solver="jacobi", iterations=iterations, arch=TEST_ARCH)
+    fixed = World(scene, solver="jacobi", iterations=iterations, arch=TEST_ARCH, relaxation=0.25)
     bounded.step(1)
     fixed.step(1)
     busiest = int(bounded.buf.blocks.adj_count.to_numpy()[:bounded.body_count].max())
@@ -308,5 +309,5 @@ def test_a_jacobi_bounce_beside_a_busy_body_keeps_its_speed():
     d = scene_dict([cube] + block, statics=(dict(plane(), restitution=1.0),), gravity=(0.0, 0.0, -G),
                    solver="jacobi", iterations=10)
     d["effects"] = ["friction", "restitution"]
-    before, after = _impact_and_rebound(World(Scene.from_dict(d), arch="cpu"))
+    before, after = _impact_and_rebound(World(Scene.from_dict(d), arch=TEST_ARCH))
     assert before > 3.0 and after == pytest.approx(before, rel=0.05), f"impact {before:.3f} m/s, rebound {after:.3f}"

@@ -5,7 +5,7 @@ import pytest
 
 from sandbox import Scene, SimulationError, World
 
-from tests.helpers import box_body, plane, scene_dict
+from tests.helpers import TEST_ARCH, box_body, plane, scene_dict
 
 PARALLEL = ["pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting"]
 DETERMINISTIC = ["pgs", "pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting"]
@@ -34,7 +34,7 @@ def _one_step(bodies, solver, sweeps):
     from sandbox import Settings
 
     scene = Scene.from_dict(scene_dict(bodies))
-    world = World(scene, solver=solver, iterations=1, arch="cpu", settings=Settings(warm_start=0.0, sweeps=sweeps))
+    world = World(scene, solver=solver, iterations=1, arch=TEST_ARCH, settings=Settings(warm_start=0.0, sweeps=sweeps))
     world.track_impulses = True
     world.step(1)
     c = world.contacts()
@@ -78,7 +78,7 @@ def test_plain_jacobi_does_not_converge_where_mass_splitting_does(problem):
     scene = Scene.from_dict(scene_dict(JACOBI_PROBLEMS[problem]))
     residual = {}
     for solver, opts in (("jacobi", {"relaxation": 1.0}), ("mass-splitting", {})):
-        world = World(scene, solver=solver, iterations=1, arch="cpu", settings=Settings(warm_start=0.0, sweeps=400),
+        world = World(scene, solver=solver, iterations=1, arch=TEST_ARCH, settings=Settings(warm_start=0.0, sweeps=400),
                       **opts)
         try:
             world.step(1)
@@ -108,7 +108,7 @@ def test_two_runs_are_bitwise_identical(solver):
     assert len(scene.bodies) == 300
     states = []
     for _ in range(2):
-        world = World(scene, solver=solver, iterations=8, arch="cpu")
+        world = World(scene, solver=solver, iterations=8, arch=TEST_ARCH)
         world.step(90)
         states.append(world.state())
         assert world.metrics()["contacts"] > 300  # the pile has landed and touches
@@ -118,7 +118,7 @@ def test_two_runs_are_bitwise_identical(solver):
 
 def test_set_solver_keeps_world_and_warm_start():
     scene = Scene.from_dict(scene_dict([box_body([0, 0, 0.5 + i]) for i in range(5)]))
-    world = World(scene, solver="pgs", iterations=10, arch="cpu")
+    world = World(scene, solver="pgs", iterations=10, arch=TEST_ARCH)
     world.track_impulses = True
     world.step(60)
     before = world.state()["position"].copy()
@@ -141,7 +141,7 @@ def test_residual_falls_with_sweeps_on_a_frozen_problem(solver):
     from sandbox import Settings
 
     scene = Scene.from_dict(scene_dict(SMALL_PROBLEMS["three_box_stack"]))
-    world = World(scene, solver=solver, iterations=1, arch="cpu", settings=Settings(warm_start=0.0, sweeps=1500))
+    world = World(scene, solver=solver, iterations=1, arch=TEST_ARCH, settings=Settings(warm_start=0.0, sweeps=1500))
     world.record_residuals = True
     world.step(1)
     curve = np.asarray(world.residual_history)
@@ -166,7 +166,7 @@ def test_iteration_launches_give_the_same_bits(solver):
     states = {}
     launches = ("per-stage", "one", "shared", "per-substep")
     for launch in launches:
-        world = World(scene, solver=solver, iterations=4, arch="cpu", settings=Settings(iteration_launch=launch),
+        world = World(scene, solver=solver, iterations=4, arch=TEST_ARCH, settings=Settings(iteration_launch=launch),
                       **opts)
         impact_steps = 0
         for _ in range(75):
@@ -193,14 +193,14 @@ def test_a_fast_push_relaxes_twice_in_every_launch(solver):
     scene = Scene.from_dict(deep_overlap().scene, source="deep_overlap")
     states = {}
     for launch in ("per-stage", "one", "shared", "per-substep"):
-        world = World(scene, solver=solver, iterations=15, arch="cpu",
+        world = World(scene, solver=solver, iterations=15, arch=TEST_ARCH,
                       settings=Settings(iteration_launch=launch, relax_push_speed=0.5))
         world.step(4)
         states[launch] = world.state()
     for launch in ("one", "shared", "per-substep"):
         for key in states["per-stage"]:
             np.testing.assert_array_equal(states["per-stage"][key], states[launch][key], err_msg=f"{launch} {key}")
-    world = World(scene, solver=solver, iterations=15, arch="cpu")
+    world = World(scene, solver=solver, iterations=15, arch=TEST_ARCH)
     world.step(4)
     assert not np.array_equal(world.state()["linear_velocity"], states["one"]["linear_velocity"])
 
@@ -219,7 +219,7 @@ def test_an_impact_and_a_fast_push_in_every_launch(solver):
     scene = Scene.from_dict(d, source="deep_overlap_and_a_throw")
     states = {}
     for launch in ("per-stage", "one", "shared", "per-substep"):
-        world = World(scene, solver=solver, iterations=15, arch="cpu",
+        world = World(scene, solver=solver, iterations=15, arch=TEST_ARCH,
                       settings=Settings(iteration_launch=launch, relax_push_speed=0.5))
         impact_steps = 0
         for _ in range(4):
@@ -248,7 +248,7 @@ def test_shared_iteration_loop_with_any_team_size(solver, monkeypatch):
     for label, launch, members in (("one", "one", None), ("team of 1", "shared", 1), ("team of 3", "shared", 3)):
         if members is not None:
             monkeypatch.setattr(team, "cpu_threads", lambda n=members: n)
-        world = World(scene, solver=solver, iterations=4, arch="cpu", settings=Settings(iteration_launch=launch),
+        world = World(scene, solver=solver, iterations=4, arch=TEST_ARCH, settings=Settings(iteration_launch=launch),
                       **opts)
         world.step(40)
         states[label] = world.state()
@@ -265,7 +265,7 @@ def test_fused_step_kernels_give_the_profiled_bits(solver):
     scene = Scene.from_dict(_pile_300())
     states = []
     for profile in (True, False):
-        world = World(scene, solver=solver, iterations=4, arch="cpu", profile=profile)
+        world = World(scene, solver=solver, iterations=4, arch=TEST_ARCH, profile=profile)
         world.step(60)
         assert world.metrics()["contacts"] > 300
         states.append(world.state())

@@ -21,6 +21,7 @@ from sandbox.scene import EventSpec, load_scene, scene_from_dict
 from sandbox.scene import generators
 from sandbox.scene.loader import EFFECTS, EVENT_KINDS, GENERATOR_KINDS
 from sandbox.scene.rotations import quat_to_matrix
+from tests.helpers import TEST_ARCH
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenes"
@@ -582,7 +583,7 @@ def test_gravity_and_effects_events_load_and_apply():
     gravity, effects = scene.events
     assert gravity.kind == "gravity" and np.array_equal(gravity.gravity, [0.0, 0.0, 0.0])
     assert effects.kind == "effects" and effects.effects == ("restitution",)
-    world = World(scene, arch="cpu")
+    world = World(scene, arch=TEST_ARCH)
     world.step(31)  # the events apply at step 30
     assert not np.any(world.gravity) and world.effects == ("restitution",) and not world.friction
     world.set_velocity([1], linear=[0.0, 0.0, 1.0])  # box b: clear of the height field

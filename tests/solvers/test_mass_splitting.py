@@ -18,7 +18,7 @@ from sandbox.bodies import Bodies
 from sandbox.contacts import Contacts
 from sandbox.solvers import mass_splitting as ms
 from sandbox.solvers.rows import RELAX, Rows
-from tests.helpers import box_body, scene_dict
+from tests.helpers import TEST_ARCH, box_body, scene_dict
 
 BODIES = 40
 STATIC = [3, 17, 39]  # static bodies own no slots
@@ -178,7 +178,7 @@ def _corner_response(rx, ry):
 def resting_box():
     scene = Scene.from_dict(scene_dict([box_body([0.0, 0.0, HALF[2] - SINK], half=HALF, mass=MASS)],
                                        solver="mass-splitting", iterations=1))
-    world = World(scene, arch="cpu")
+    world = World(scene, arch=TEST_ARCH)
     world.step(1)  # finds the 4 corner contacts and prepares their rows at the starting pose
     return world
 
