@@ -17,7 +17,11 @@ import threading
 from .errors import SandboxError
 
 ARCHES = ("cpu", "cuda", "auto")
+LOOPS_ENV = "SANDBOX_LOOPS"
+"""``SANDBOX_LOOPS=cuda`` before the first world: a CPU run takes the loop shapes of a CUDA run
+(loop_arch), so that the CPU test suite meets what only the GPU's parallel loops would."""
 _active: str | None = None
+_loop_arch: str | None = None
 _owner_thread: int | None = None
 _pinned: list[int] = []
 
@@ -51,7 +55,7 @@ def resolve_arch(arch: str) -> str:
 
 def init(arch: str = "auto") -> str:
     """Initialise Taichi once for this process and return the arch in use."""
-    global _active, _owner_thread
+    global _active, _owner_thread, _loop_arch
     wanted = resolve_arch(arch)
     if _active is not None and threading.get_ident() != _owner_thread:
         # Taichi's LLVM context asserts (and aborts the call with a raw traceback) when
@@ -64,6 +68,7 @@ def init(arch: str = "auto") -> str:
                 f"Taichi is already running on {_active} in this process; cannot switch to {wanted}"
             )
         return _active
+    loops = _loops_asked(wanted)
     os.environ.setdefault("TI_SKIP_VERSION_CHECK", "ON")
     import taichi as ti
 
@@ -87,6 +92,7 @@ def init(arch: str = "auto") -> str:
         advanced_optimization=False,
     )
     _active = wanted
+    _loop_arch = loops
     _owner_thread = threading.get_ident()
     if wanted == "cpu" and os.environ.get("SANDBOX_PIN_THREADS", "1") != "0":
         from .cpu_workers import pin_cpu_workers
@@ -104,6 +110,23 @@ def active_arch() -> str | None:
     return _active
 
 
+def _loops_asked(arch: str) -> str:
+    asked = os.environ.get(LOOPS_ENV, "")
+    if asked not in ("", "cpu", "cuda"):
+        raise SandboxError(f"{LOOPS_ENV}={asked!r}: use 'cuda' (a CPU run takes CUDA's loop shapes) or leave it unset")
+    return "cuda" if arch == "cuda" or asked == "cuda" else "cpu"
+
+
+def loop_arch() -> str | None:
+    """The arch whose loop shapes the kernels take: the active one, or ``cuda`` on the CPU under
+    ``SANDBOX_LOOPS=cuda``. CUDA's shapes: every light loop parallel (serialize_light_loops),
+    every heavy loop parallel whatever the world's size (dispatch.py), the iteration loop one
+    launch per substep (Schedule.launch). On the CPU they run on Taichi's worker threads, so a
+    loop whose result depends on its order (a race) shows there as on a GPU; each shape gives
+    the same bits (tests/test_dispatch.py compares the state hashes)."""
+    return _loop_arch
+
+
 def sync() -> None:
     import taichi as ti
 
@@ -115,5 +138,6 @@ def serialize_light_loops() -> bool:
     copy or clear over bodies, a scan, a short fill: microseconds of work). On the CPU every
     parallel loop is a thread-pool dispatch, ~30-50 us each on the 2-core VM whatever its
     size (benchmarks/loop_dispatch.py), against ~0.3 us for a loop run on the launching
-    thread; a step has ~40 such loops. On CUDA they stay parallel."""
-    return _active == "cpu"
+    thread; a step has ~40 such loops. On CUDA they stay parallel (and under loop_arch's
+    ``SANDBOX_LOOPS=cuda``)."""
+    return _loop_arch == "cpu"

@@ -32,7 +32,7 @@ import numpy as np
 
 from . import buffers, sleep, sleep_rebuild
 from .awake import EVERY
-from .backend import active_arch
+from .backend import loop_arch
 from .dispatch import dispatch_for
 from .build import host_world, upload
 from .errors import CapacityError, SandboxError
@@ -173,7 +173,7 @@ class Edits:
     def dispatch(self):
         """The ``dispatch`` argument of the step's kernels (dispatch.py): from the arch and the
         buffers' body capacity, so it changes only when the buffers grow (a recompile anyway)."""
-        return dispatch_for(active_arch(), self.buf.caps.bodies)
+        return dispatch_for(loop_arch(), self.buf.caps.bodies)
 
     def set_sleeping(self, on: bool) -> None:
         """Turn the sleeping effect on (everything starts awake) or off (every island wakes, with

@@ -78,7 +78,7 @@ class Controls:
     effects: CompiledEffects  # compile-time switches (effects.py)
     track_impulses: bool  # each substep's impulses summed into the step's (World.track_impulses)
     record_residuals: bool  # a residual read after every biased sweep (forces the staged path)
-    arch: str
+    loop_arch: str  # whose loop shapes the step takes (backend.loop_arch): picks the iteration launch
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,7 @@ class Stepper:
         bounce = c.effects.restitution
         track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
         staged = p.enabled or c.record_residuals or pause  # a timer per stage, a read per sweep
-        launch = "per-stage" if staged else c.schedule.launch(s, c.arch, b.caps.bodies, plan)
+        launch = "per-stage" if staged else c.schedule.launch(s, c.loop_arch, b.caps.bodies, plan)
         friction = contact_switch(c.effects)
         if fused and launch in ("one", "shared") and not (watch or bounce or c.schedule.info.needs_coloring):
             # nothing for the host between set-up, solve and store: one launch, the same bits

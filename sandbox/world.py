@@ -307,7 +307,7 @@ class World:
             self.apply_event(self._pending.pop(0))
         watch = self._edits.watch_impacts and self.auto_fracture
         controls = Controls(self._schedule, self.iterations, self.gravity, self.compiled_effects,
-                            self.track_impulses, self.record_residuals, self.arch)
+                            self.track_impulses, self.record_residuals, backend.loop_arch())
         for s in range(self.substeps):
             yield from self._stepper.substep_sweeps(controls, h, watch, first=s == 0, step_count=self.step_count,
                                                     pause=pause)

@@ -1,10 +1,16 @@
-"""A world's heavy loops give the same bits run serially or in parallel (sandbox/dispatch.py)."""
+"""A world's heavy loops give the same bits run serially or in parallel (sandbox/dispatch.py), and a
+CPU run that takes CUDA's loop shapes gives the stored bits (backend.loop_arch)."""
+
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 from sandbox import Scene, World, dispatch
 from sandbox.scene.library import resolve_scene
+from tests import state_hashes as sh
 
 
 def _final_state(scene: str, solver: str, steps: int):
@@ -31,3 +37,44 @@ def test_cuda_never_runs_serially():
     assert dispatch.dispatch_for("cuda", 64) is dispatch.PARALLEL
     assert dispatch.dispatch_for("cpu", dispatch.SERIAL_BODY_LIMIT) is dispatch.SERIAL
     assert dispatch.dispatch_for("cpu", 2 * dispatch.SERIAL_BODY_LIMIT) is dispatch.PARALLEL
+
+
+CUDA_SHAPE_CASES = ("stack_20-mass-splitting-60", "stack_20-block-mass-splitting-60", "stack_20-pgs-colored-60",
+                    "playground-mass-splitting-60")
+"""Both split schedules, the per-colour launches, and the web's default scene (mixed shapes,
+sleeping). On 2026-11-26 all 31 quick cases were run this way and matched (docs/bench.md)."""
+
+CHILD = """
+import sys
+from tests import state_hashes as sh
+cases = {c.id: c for c in sh.quick_cases()}
+from sandbox import backend
+backend.init("cpu")
+assert backend.loop_arch() == "cuda", backend.loop_arch()
+for cid in sys.argv[1:]:
+    print(cid, sh.run_case(cases[cid]), flush=True)
+"""
+
+
+def test_cuda_loop_shapes_on_the_cpu_give_the_stored_bits():
+    """Every loop parallel on Taichi's worker threads, the iteration loop one launch per substep,
+    as on a GPU: a loop whose result hung on its order (a race the CPU's serial light loops
+    hide) would change the bits. A fresh process, since the shapes are fixed at compile time."""
+    stored = sh.stored()
+    if stored is None:
+        pytest.skip(sh.no_platform_message())
+    env = {**os.environ, "SANDBOX_LOOPS": "cuda", "PYTHONPATH": str(sh.ROOT)}
+    run = subprocess.run([sys.executable, "-c", CHILD, *CUDA_SHAPE_CASES], capture_output=True, text=True,
+                         env=env, cwd=sh.ROOT, timeout=600)
+    assert run.returncode == 0, run.stderr[-2000:]
+    results = dict(line.split(" ", 1) for line in run.stdout.splitlines() if line.startswith(CUDA_SHAPE_CASES))
+    for cid in CUDA_SHAPE_CASES:
+        assert results.get(cid) == stored.get(cid), f"{cid} under SANDBOX_LOOPS=cuda: {results.get(cid)}"
+
+
+def test_an_unknown_loop_shape_is_refused(monkeypatch):
+    from sandbox import SandboxError, backend
+
+    monkeypatch.setenv(backend.LOOPS_ENV, "gpu")
+    with pytest.raises(SandboxError, match="SANDBOX_LOOPS"):
+        backend._loops_asked("cpu")
