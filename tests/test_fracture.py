@@ -21,7 +21,7 @@ from sandbox.polytope import penetration_depth  # noqa: E402
 from sandbox.scene import EventSpec, load_scene, scene_from_dict  # noqa: E402
 from sandbox.scene.rotations import quat_to_matrix  # noqa: E402
 from sandbox.settings import Settings  # noqa: E402
-from tests.helpers import TEST_ARCH
+from tests.helpers import TEST_ARCH  # noqa: E402
 
 HOST_RTOL = 1e-9
 """[1] Momentum and mass after a fracture in float64: exact up to the rounding of a few hundred
