@@ -90,6 +90,7 @@ def init(arch: str = "auto") -> str:
         # narrowphase kernel (9 s -> 1.5 s on the CI machine) for no measurable
         # run-time gain: LLVM still optimises the generated code.
         advanced_optimization=False,
+        **_cache_size(),
     )
     _active = wanted
     _loop_arch = loops
@@ -99,6 +100,20 @@ def init(arch: str = "auto") -> str:
 
         _pinned[:] = pin_cpu_workers()
     return wanted
+
+
+OFFLINE_CACHE_BYTES = 1 << 30
+"""Taichi's offline kernel cache may grow to 1 GiB (Taichi's default: 100 MB). The shipped
+scenes with their own solvers alone compile 102 MB of kernels, so at Taichi's default every
+process that ends above it evicts the least recently used quarter, and a scene opened again
+after a few others compiles again (~6 s more on its first step; docs/bench.md)."""
+
+
+def _cache_size() -> dict:
+    """``ti.init``'s cache cap, unless ``TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES`` sets one."""
+    if os.environ.get("TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES"):
+        return {}
+    return {"offline_cache_max_size_of_files": OFFLINE_CACHE_BYTES}
 
 
 def pinned_cpus() -> list[int]:

@@ -39,3 +39,13 @@ def test_test_worlds_follow_the_session_arch():
               for n, line in enumerate(p.read_text().splitlines(), 1)
               if 'arch="cpu"' in line and "test_app.py" not in p.name]
     assert not pinned, f"use arch=TEST_ARCH (tests/helpers.py): {pinned}"
+
+
+def test_the_kernel_cache_may_outgrow_taichis_default():
+    """Every shipped scene's kernels (102 MB) fit the offline cache, so none is evicted by the
+    next process's exit (backend.OFFLINE_CACHE_BYTES); a cap set in the environment wins."""
+    from taichi.lang import impl
+
+    cap = impl.current_cfg().offline_cache_max_size_of_files
+    asked = os.environ.get("TI_OFFLINE_CACHE_MAX_SIZE_OF_FILES")
+    assert cap == (int(asked) if asked else backend.OFFLINE_CACHE_BYTES)
