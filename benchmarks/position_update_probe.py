@@ -5,8 +5,9 @@
 On the first GPU run (docs/bench.md, "On a GPU") the position update's loop cost ~1 ms per
 launch on CUDA whatever the body count, while every other body loop of a substep took 5-15 us.
 This times ``integrate_positions`` beside kernels that each do one of its parts over the same
-bodies, so the part that carries the millisecond shows. Every kernel leaves the state as it was
-(zero step, zero velocity scale).
+bodies, so the part that carries the millisecond shows. The kernels step by zero and scale the
+velocities by zero, so the bodies stay where they are (orientations are renormalised and the
+gyroscopic variant rewrites angular velocities: a probe, not a simulation).
 """
 
 import argparse

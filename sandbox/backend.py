@@ -103,8 +103,9 @@ def init(arch: str = "auto") -> str:
 
 
 OFFLINE_CACHE_BYTES = 1 << 30
-"""Taichi's offline kernel cache may grow to 1 GiB (Taichi's default: 100 MB). The shipped
-scenes with their own solvers alone compile 102 MB of kernels, so at Taichi's default every
+"""Taichi's offline kernel cache may grow to 1 GiB (Taichi's default: 100 MB). The 31 quick
+state-hash cases (every shipped scene with its own solver, three with every solver) compile
+102 MB of kernels into an empty cache, so at Taichi's default every
 process that ends above it evicts the least recently used quarter, and a scene opened again
 after a few others compiles again (~6 s more on its first step; docs/bench.md)."""
 
@@ -128,15 +129,17 @@ def active_arch() -> str | None:
 def _loops_asked(arch: str) -> str:
     asked = os.environ.get(LOOPS_ENV, "")
     if asked not in ("", "cpu", "cuda"):
-        raise SandboxError(f"{LOOPS_ENV}={asked!r}: use 'cuda' (a CPU run takes CUDA's loop shapes) or leave it unset")
+        raise SandboxError(f"{LOOPS_ENV}={asked!r}: use 'cuda' (a CPU run takes CUDA's loop shapes) or 'cpu' "
+                           f"(each arch its own, the default)")
     return "cuda" if arch == "cuda" or asked == "cuda" else "cpu"
 
 
 def loop_arch() -> str | None:
     """The arch whose loop shapes the kernels take: the active one, or ``cuda`` on the CPU under
-    ``SANDBOX_LOOPS=cuda``. CUDA's shapes: every light loop parallel (serialize_light_loops),
-    every heavy loop parallel whatever the world's size (dispatch.py), the iteration loop one
-    launch per substep (Schedule.launch). On the CPU they run on Taichi's worker threads, so a
+    ``SANDBOX_LOOPS=cuda`` (``cpu``, the default, keeps each arch's own). CUDA's shapes: every
+    light loop parallel (serialize_light_loops), every heavy loop parallel whatever the world's
+    size (dispatch.py), and the iteration loop never the CPU's one or shared launch
+    (Schedule.launch: one launch per substep where the schedule has it, else per stage). On the CPU they run on Taichi's worker threads, so a
     loop whose result depends on its order (a race) shows there as on a GPU; each shape gives
     the same bits (tests/test_dispatch.py compares the state hashes)."""
     return _loop_arch

@@ -157,6 +157,14 @@ def run_case(case: Case) -> str:
         world.close()
 
 
+def comparable() -> bool:
+    """Whether this process can check the stored bits: they are the CPU's (a CUDA session, whose
+    atomics commit in any order, skips them; ``SANDBOX_LOOPS=cuda`` on the CPU keeps them)."""
+    from sandbox import backend
+
+    return backend.active_arch() in (None, "cpu")
+
+
 def is_hash(result: str) -> bool:
     return len(result) == 64 and all(ch in "0123456789abcdef" for ch in result)
 

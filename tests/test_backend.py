@@ -27,8 +27,8 @@ def test_taichi_workers_are_pinned_one_per_cpu():
 
 
 CPU_BOUND_TESTS = {"state_hashes.py", "test_dispatch.py", "test_backend.py"}
-"""Test files that mean the CPU: bitwise state hashes and the CPU loop dispatch. The web test
-starts its server with ``--arch cpu`` on its own command line."""
+"""Test files that mean the CPU: bitwise state hashes and the CPU loop dispatch (they skip in a
+session on another backend)."""
 
 
 def test_test_worlds_follow_the_session_arch():
@@ -37,13 +37,14 @@ def test_test_worlds_follow_the_session_arch():
     tests = Path(__file__).parent
     pinned = [f"{p.relative_to(tests)}:{n}" for p in sorted(tests.rglob("*.py")) if p.name not in CPU_BOUND_TESTS
               for n, line in enumerate(p.read_text().splitlines(), 1)
-              if 'arch="cpu"' in line and "test_app.py" not in p.name]
+              if 'arch="cpu"' in line]
     assert not pinned, f"use arch=TEST_ARCH (tests/helpers.py): {pinned}"
 
 
 def test_the_kernel_cache_may_outgrow_taichis_default():
-    """Every shipped scene's kernels (102 MB) fit the offline cache, so none is evicted by the
-    next process's exit (backend.OFFLINE_CACHE_BYTES); a cap set in the environment wins."""
+    """The shipped scenes' kernels (102 MB for the 31 quick state-hash cases) fit the offline
+    cache, so a process's exit evicts none of them (backend.OFFLINE_CACHE_BYTES); a cap set in
+    the environment wins."""
     from taichi.lang import impl
 
     cap = impl.current_cfg().offline_cache_max_size_of_files

@@ -305,7 +305,7 @@ class Simulation:
             profiler.reset()
         profiler.enabled = profiled
         logged = len(self.world.applied_events)
-        t0, cpu0 = time.perf_counter(), time.thread_time()
+        t0, cpu0, all0 = time.perf_counter(), time.thread_time(), time.process_time()
         try:
             self.world.step(1)
         except SimulationError as exc:
@@ -316,9 +316,11 @@ class Simulation:
         seconds = time.perf_counter() - t0
         if seconds > self.SLOW_STEP_S:
             # the thread's own CPU time tells a compile (Taichi compiles on the calling thread) from
-            # a step that waited: descheduled, or for the lock another thread of the server held
+            # a step that waited; the process's (Taichi's workers, the server's other threads
+            # included) tells a step that waited for the server's own work from one descheduled
             self.log(f"[sandbox] slow step {self.world.step_count}: {1e3 * seconds:.0f} ms, "
-                     f"{1e3 * (time.thread_time() - cpu0):.0f} ms of it on this thread's CPU"
+                     f"{1e3 * (time.thread_time() - cpu0):.0f} ms of it on this thread's CPU, "
+                     f"{1e3 * (time.process_time() - all0):.0f} ms on the process's"
                      + (" (the world's first: its kernels compile)" if self.world.step_count == 1 else ""))
         self._after_step(seconds, profiled, logged)
         return True

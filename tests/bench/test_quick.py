@@ -11,6 +11,7 @@ import pytest
 
 from sandbox import bench
 from sandbox.cli import main
+from tests.helpers import TEST_ARCH
 
 TEXT_COLUMNS = {"scene", "engine", "solver", "options", "arch", "status"}
 HAS_PYBULLET = importlib.util.find_spec("pybullet") is not None
@@ -20,7 +21,7 @@ HAS_PYBULLET = importlib.util.find_spec("pybullet") is not None
 def quick(tmp_path_factory):
     pytest.importorskip("matplotlib")
     out = tmp_path_factory.mktemp("bench")
-    rc = main(["bench", "--quick", "--quiet", "--out", str(out)])
+    rc = main(["bench", "--quick", "--quiet", "--arch", TEST_ARCH, "--out", str(out)])
     with open(out / "bench.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     with open(out / "scaling.csv", newline="") as fh:

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tests.helpers import TEST_ARCH
 from web.app import free_port
 from web.browser import CHROMIUM_ARGS, chromium_path
 
@@ -95,9 +96,32 @@ def browser():
         b.close()
 
 
+def _yield_to_the_server() -> None:
+    """Let this run's other pytest-xdist workers (this process's siblings) run only when the server,
+    the browser and this test leave a core idle, by lowering every thread of theirs to the lowest
+    priority (nice 19; allowed for one's own processes). The stall criterion is the server's step
+    time as a user sees it; on the 2-core CI machine the sibling's Taichi compiles share the cores
+    with it (a failing step took 624 ms, 12 ms of it on the simulation thread's CPU). Kept for the
+    rest of the run (lowering a priority is allowed, raising it back is not)."""
+    if "PYTEST_XDIST_WORKER" not in os.environ or not Path("/proc/self/task").exists():
+        return
+    parent, me = os.getppid(), os.getpid()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == me:
+            continue
+        try:
+            if int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1]) != parent:
+                continue
+            for task in (entry / "task").iterdir():
+                os.setpriority(os.PRIO_PROCESS, int(task.name), 19)
+        except (OSError, ValueError, IndexError):  # it ended meanwhile, or is not ours
+            continue
+
+
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     recordings = tmp_path_factory.mktemp("recordings")
+    _yield_to_the_server()
     s = Server(str(SCENE), "--solver", "mass-splitting", "--iterations", "15", "--recordings", str(recordings))
     s.recordings = recordings
     try:
@@ -203,8 +227,9 @@ def test_browser_session(browser, server):
     header, frames = load(saved)
     kinds = [e[1]["kind"] for e in header["events"]]
     assert header["start_step"] > 0 and {"drop", "solver", "formulation"} <= set(kinds) and len(frames) > 1
-    result = replay(saved, arch="cpu")
-    assert result["first_departure"] is None, result
+    if TEST_ARCH == "cpu":  # the server ran on the CPU; bit-for-bit replay is a CPU promise
+        result = replay(saved, arch=TEST_ARCH)
+        assert result["first_departure"] is None, result
     _choose(page, "Formulation", "soft-step")  # the rest of the session on the default scheme
     server.wait_for(r"\[sandbox\] formulation soft-step", 60)
 
