@@ -12,6 +12,7 @@ stats and plots). All tabs share one world and one panel; closing a tab changes 
 from __future__ import annotations
 
 import errno
+import signal
 import socket
 import threading
 import time
@@ -55,6 +56,11 @@ def free_port(host: str = "127.0.0.1") -> int:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
         s.bind((host, 0))
         return s.getsockname()[1]
+
+
+def _interrupt(signum, frame):
+    """SIGTERM, handled as Ctrl+C is (SandboxApp.serve_forever)."""
+    raise KeyboardInterrupt
 
 
 class SandboxApp:
@@ -101,14 +107,20 @@ class SandboxApp:
         return self.url
 
     def serve_forever(self) -> None:
+        """Serve until Ctrl+C or a SIGTERM (``kill``, a service manager), both a clean exit: Taichi
+        writes the kernels it compiled to its offline cache only when the process exits normally.
+        A server stopped by a bare SIGTERM lost them all, and the next start compiled its first
+        step and its first profiled step again (9.5-11 s each, against 4.0-4.4 s after Ctrl+C)."""
         url = self.start(background=False)
         self.log(f"sandbox serve: {url}  (scene {self.scene_path.stem}, {self.sim.world.solver}, {self.arch}; "
                  "Ctrl+C stops)", flush=True)
+        previous = signal.signal(signal.SIGTERM, _interrupt)
         try:
             self._render_loop()
         except KeyboardInterrupt:
             pass
         finally:
+            signal.signal(signal.SIGTERM, previous)
             self.stop()
 
     def stop(self) -> None:

@@ -340,3 +340,12 @@ def test_unknown_scene_and_busy_port_are_clear_errors():
                               cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
     assert busy.returncode == 2
     assert f"port {port} on 127.0.0.1 is busy" in busy.stderr and "Traceback" not in busy.stderr
+
+
+def test_a_terminated_server_exits_cleanly(server):
+    """SIGTERM (``kill``, a service manager, this test's fixture) stops the server as Ctrl+C does,
+    through a normal exit: only then does Taichi write the kernels it compiled to its offline
+    cache (a bare SIGTERM lost them, and the next start compiled for ~20 s). Runs last in this
+    module: it stops the module's server."""
+    server.proc.terminate()
+    assert server.proc.wait(timeout=60) == 0, server.output[-2000:]
