@@ -105,9 +105,9 @@ def init(arch: str = "auto") -> str:
 OFFLINE_CACHE_BYTES = 1 << 30
 """Taichi's offline kernel cache may grow to 1 GiB (Taichi's default: 100 MB). The 31 quick
 state-hash cases (every shipped scene with its own solver, three with every solver) compile
-102 MB of kernels into an empty cache, so at Taichi's default every
-process that ends above it evicts the least recently used quarter, and a scene opened again
-after a few others compiles again (~6 s more on its first step; docs/bench.md)."""
+102 MB of kernels into an empty cache, so at Taichi's default every process that ends above it
+evicts the least recently used quarter, and a scene opened again after a few others compiles
+again (~6 s more on its first step; docs/bench.md)."""
 
 
 def _cache_size() -> dict:
@@ -139,9 +139,10 @@ def loop_arch() -> str | None:
     ``SANDBOX_LOOPS=cuda`` (``cpu``, the default, keeps each arch's own). CUDA's shapes: every
     light loop parallel (serialize_light_loops), every heavy loop parallel whatever the world's
     size (dispatch.py), and the iteration loop never the CPU's one or shared launch
-    (Schedule.launch: one launch per substep where the schedule has it, else per stage). On the CPU they run on Taichi's worker threads, so a
-    loop whose result depends on its order (a race) shows there as on a GPU; each shape gives
-    the same bits (tests/test_dispatch.py compares the state hashes)."""
+    (Schedule.launch: one launch per substep where the schedule has it, else per stage). On the
+    CPU they run on Taichi's worker threads, so a loop whose result depends on its order (a race)
+    shows there as on a GPU; each shape gives the same bits (tests/test_dispatch.py compares the
+    state hashes)."""
     return _loop_arch
 
 

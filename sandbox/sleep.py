@@ -27,7 +27,6 @@ The buffers are allocated the first time a world of this capacity class sleeps, 
 without the effect allocates and compiles none of this (house rule 8).
 """
 
-
 import numpy as np
 import taichi as ti
 
@@ -81,10 +80,10 @@ class SleepBuffers:
         self.idle = False
         """The last step ran with no awake body and nothing has woken since: the next step
         would change no bit (no awake shape to collide, no row, no body to move), so the
-        stepper skips it. Every change of the awake set clears it (``_note_grid``)."""
+        stepper skips it. Every change of the awake set clears it (``note_grid``)."""
 
 
-def _note_grid(sl: SleepBuffers) -> None:
+def note_grid(sl: SleepBuffers) -> None:
     """After an event changed the awake set and rebuilt the sleeping grid: did it fit? The
     next step is not idle."""
     sl.grid_full = int(sl.status[GRID_ENTRIES]) > sl.grid.entry_capacity
@@ -107,7 +106,7 @@ def buffers_of(buf) -> SleepBuffers:
 # ---------------------------------------------------------------------------- kernels
 @ti.func
 def _refresh(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp: ti.template(), err: ti.template(),
-             margin: ti.f32):
+                          margin: ti.f32):
     """The awake lists, the sleeping shapes' list and grid, and the sleeping counts, from ``asleep``."""
     nb = bodies.count[None]
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
@@ -166,8 +165,8 @@ def _start(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp: 
 
 
 @ti.kernel
-def _restart(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp: ti.template(), err: ti.template(),
-             margin: ti.f32):
+def restart_after_rebuild(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp: ti.template(),
+                          err: ti.template(), margin: ti.f32):
     """After ``asleep``, ``timer``, labels and store were written from the host (a rebuild)."""
     for i in range(bodies.count[None]):
         sl.change[i] = 0
@@ -286,7 +285,7 @@ def start(buf, margin: float) -> None:
     sl = buffers_of(buf)
     _start(sl, buf.shapes, buf.bodies, buf.bp, buf.errors, margin)
     sl.status[AWAKE_ISLANDS] = label_islands(sl.islands, buf.contacts, buf.bodies, sl)
-    _note_grid(sl)
+    note_grid(sl)
 
 
 def after_step(buf, h: float, settings, labelled: bool = False) -> None:
@@ -304,7 +303,7 @@ def after_step(buf, h: float, settings, labelled: bool = False) -> None:
     if status[FALLING_COUNT] > 0:
         _fall_asleep(sl, buf.history, buf.manifold_cache, buf.shapes, buf.bodies, buf.bp, buf.errors,
                      settings.contact_margin)
-        _note_grid(sl)
+        note_grid(sl)
 
 
 def precompile(buf, margin: float) -> None:
@@ -317,7 +316,7 @@ def precompile(buf, margin: float) -> None:
     for _ in range(2):
         _fall_asleep(sl, buf.history, buf.manifold_cache, buf.shapes, buf.bodies, buf.bp, buf.errors, margin)
     _wake(sl, buf.history, buf.manifold_cache, buf.shapes, buf.bodies, buf.bp, buf.errors, margin, 0)
-    _note_grid(sl)
+    note_grid(sl)
 
 
 def wake_touched(buf, margin: float) -> bool:
@@ -329,7 +328,7 @@ def wake_touched(buf, margin: float) -> bool:
     cache = buf.manifold_cache
     cache.parity[None] = 1 - int(cache.parity[None])
     _wake(sl, buf.history, cache, buf.shapes, buf.bodies, buf.bp, buf.errors, margin, 0)
-    _note_grid(sl)
+    note_grid(sl)
     return True
 
 
@@ -339,7 +338,7 @@ def wake(buf, margin: float, bodies=None) -> None:
     if bodies is None:
         if int(sl.status[SLEEPING_BODIES]) > 0:
             _wake(sl, buf.history, buf.manifold_cache, buf.shapes, buf.bodies, buf.bp, buf.errors, margin, 1)
-            _note_grid(sl)
+            note_grid(sl)
         return
     ids = np.asarray(list(bodies), dtype=np.int32)
     if len(ids) == 0:
@@ -347,7 +346,7 @@ def wake(buf, margin: float, bodies=None) -> None:
     _mark(sl, ids)
     if int(sl.touched[None]) > 0:
         _wake(sl, buf.history, buf.manifold_cache, buf.shapes, buf.bodies, buf.bp, buf.errors, margin, 0)
-        _note_grid(sl)
+        note_grid(sl)
 
 
 def counts(buf) -> dict[str, int]:

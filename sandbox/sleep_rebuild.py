@@ -8,7 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .sleep import AWAKE_ISLANDS, _note_grid, _restart, buffers_of
+from .sleep import AWAKE_ISLANDS, buffers_of, note_grid, restart_after_rebuild
+
 
 @dataclass
 class SleepSnapshot:
@@ -63,9 +64,9 @@ def restore(buf, snap: SleepSnapshot, body_map: np.ndarray, shape_map: np.ndarra
         full = field.to_numpy()
         full[:n_new] = values
         field.from_numpy(full)
-    _restart(sl, buf.shapes, buf.bodies, buf.bp, buf.errors, margin)
+    restart_after_rebuild(sl, buf.shapes, buf.bodies, buf.bp, buf.errors, margin)
     sl.status[AWAKE_ISLANDS] = snap.awake_islands
-    _note_grid(sl)
+    note_grid(sl)
 
 
 def _remap_records(records: dict, shape_map: np.ndarray) -> dict:

@@ -15,7 +15,8 @@ import numpy as np
 TEST_ARCH = os.environ.get("SANDBOX_TEST_ARCH", "cpu")
 """The Taichi backend of this test run (``SANDBOX_TEST_ARCH=cuda pytest ...`` on a GPU machine):
 the session fixture starts it and every test world runs on it. Bitwise repeatability is
-promised on the CPU only, so the state-hash and dispatch tests stay on ``cpu``."""
+promised on the CPU only, so the state-hash checks and the CPU dispatch test skip on another
+backend."""
 G = 9.81
 """[m/s^2] the magnitude of ``scene_dict``'s default gravity."""
 DT = 1.0 / 60.0

@@ -88,7 +88,7 @@ def test_cuda_loop_shapes_on_the_cpu_give_the_stored_bits():
 
 
 def test_an_unknown_loop_shape_is_refused(monkeypatch):
-    from sandbox import SandboxError, backend
+    from sandbox import SandboxError
 
     monkeypatch.setenv(backend.LOOPS_ENV, "gpu")
     with pytest.raises(SandboxError, match="SANDBOX_LOOPS"):

@@ -17,8 +17,7 @@ import pytest
 from sandbox import SOLVERS, Scene, World
 from sandbox.scene.library import SCENES_DIR
 
-from .conftest import box_body, plane, scene_dict
-from tests.helpers import TEST_ARCH
+from tests.helpers import TEST_ARCH, box_body, plane, scene_dict
 
 G = 9.81
 
