@@ -26,7 +26,8 @@ on the host mid-step the set-up, that loop and the store are one launch
 (``step_kernels.solve_step_in_order`` / ``solve_step_shared``: two launches a step); on CUDA
 the loop is one launch per substep; with the profiler on it runs stage by stage, a launch per phase, so that
 each stage has its timer (the unfused path; the iteration loop is then ``iterate`` plus the
-per-phase stages). Which kernels a sweep launches is the schedule's business
+per-phase stages), unless the profiler times launch by launch (profile.py: the fused launches,
+each timed under its stage group's name). Which kernels a sweep launches is the schedule's business
 (solvers/schedule.py); this module only orders the stages.
 
 Besides the launches a step makes two small reads: buffer counters after the narrowphase
@@ -38,6 +39,7 @@ included, with dt / substeps (``World.step`` calls ``Stepper.substep`` that many
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -121,14 +123,17 @@ class Stepper:
             return
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
         plan = sweep_plan(s.formulation, c.iterations, s.sweeps)
-        fused = self.fused and not p.enabled  # the once-per-step stages in three launches, or two (step_kernels.py)
+        # the once-per-step stages in three launches, or two (step_kernels.py); a profiler timing
+        # stage by stage launches them one by one, one timing launch by launch keeps them (profile.py)
+        fused = self.fused and not (p.enabled and p.per_stage)
         if not fused:
             awake = self.edits.awake_set(c.effects.sleeping)
             save_good_state(b.bodies, awake)
             b.errors.clear()
             update_world_inertia(b.bodies, awake)
         self.residual_history = []
-        b = self._collide_growing(fused, h, c, plan)
+        with p.stage("collide") if fused else contextlib.nullcontext():  # fused: one launch, or a retry
+            b = self._collide_growing(fused, h, c, plan)
         awake = self.edits.awake_set(c.effects.sleeping)  # the buffers may have grown
         if watch and first:
             from .impact import clear_bodies
@@ -136,7 +141,7 @@ class Stepper:
             clear_bodies(b.impacts, b.bodies)
         bounce = c.effects.restitution
         track = watch or bounce or c.track_impulses  # the restitution pass reads which points carried load
-        staged = p.enabled or c.record_residuals or pause  # a timer per stage, a read per sweep
+        staged = (p.enabled and p.per_stage) or c.record_residuals or pause  # a timer per stage, a read per sweep
         launch = "per-stage" if staged else c.schedule.launch(s, c.loop_arch, b.caps.bodies, plan)
         friction = contact_switch(c.effects)
         if fused and launch in ("one", "shared") and not (watch or bounce or c.schedule.info.needs_coloring):
@@ -144,11 +149,12 @@ class Stepper:
             sc = c.schedule
             switches = step_kernels.solve_switches(sc.kind, sc.mode, sc.info.scales_masses, friction, sc.visit,
                                                    s.warm_start > 0.0, track, motion_switch(c.effects))
-            if launch == "one":
-                step_kernels.solve_step_in_order(b, switches, awake, self.edits.dispatch)
-            else:
-                crew = sc.team(plan.substeps, plan.biased, plan.relax)
-                step_kernels.solve_step_shared(b, switches, *crew, awake, self.edits.dispatch)
+            with p.stage("solve"):
+                if launch == "one":
+                    step_kernels.solve_step_in_order(b, switches, awake, self.edits.dispatch)
+                else:
+                    crew = sc.team(plan.substeps, plan.biased, plan.relax)
+                    step_kernels.solve_step_shared(b, switches, *crew, awake, self.edits.dispatch)
         else:
             yield from self._solve_in_launches(c, b, awake, plan, h, launch, fused, watch, track, step_count, pause)
         self._check_errors(b, step_count)

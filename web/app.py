@@ -110,7 +110,7 @@ class SandboxApp:
         """Serve until Ctrl+C or a SIGTERM (``kill``, a service manager), both a clean exit: Taichi
         writes the kernels it compiled to its offline cache only when the process exits normally.
         A server stopped by a bare SIGTERM lost them all, and the next start compiled its first
-        step and its first profiled step again (9.5-11 s each, against 4.0-4.4 s after Ctrl+C)."""
+        step again (9.5-11 s, against 4.0-4.4 s after Ctrl+C)."""
         url = self.start(background=False)
         self.log(f"sandbox serve: {url}  (scene {self.scene_path.stem}, {self.sim.world.solver}, {self.arch}; "
                  "Ctrl+C stops)", flush=True)

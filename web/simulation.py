@@ -131,6 +131,7 @@ class Simulation:
                       reserve_pieces=DEBRIS_RESERVE, reserve_kinds=DEBRIS_KINDS,
                       **{k: v for k, v in options.items() if v is not None})
         world.prepare_edits()  # compile what a drop launches now, not on the first click
+        world.profiler.per_stage = False  # a sampled step times the fused launches: nothing more to compile
         self.inspection = None  # an inspected step of the old world goes with it
         self.stop_recording()
         twin_solver = self.twin.solver if self.twin is not None else None
@@ -168,6 +169,7 @@ class Simulation:
         self.twin = World(w.scene, solver=solver, iterations=w.iterations, arch=self.arch, profile=False,
                           formulation=w.formulation, reserve_pieces=DEBRIS_RESERVE, reserve_kinds=DEBRIS_KINDS)
         self.twin.prepare_edits()
+        self.twin.profiler.per_stage = False
         pos = w.state(("position",))["position"]
         self._twin_offset = float(np.ptp(pos[:, 0])) + COMPARE_GAP if len(pos) else COMPARE_GAP
         self._twin_generation += 1
@@ -292,9 +294,10 @@ class Simulation:
         _in_background(cmd.on_error, message)
 
     def _step(self) -> bool:
-        """One step. Once per stats window the step is profiled stage by stage (a profiled step
-        launches a kernel per phase; every launch mode gives bit-identical results), the others
-        run at full speed and are timed as a whole. A step being inspected is finished instead."""
+        """One step. Once per stats window the step is profiled launch by launch (the fused step
+        with a sync between its launches: the same kernels, so sampling compiles nothing), the
+        others run at full speed and are timed as a whole. A step being inspected is finished
+        instead."""
         if self.inspection is not None:
             self._end_inspection()
             return True
