@@ -8,7 +8,9 @@ Every kernel loop over bodies or dynamic shapes takes a template argument ``awak
 * a world's ``sleep.SleepBuffers`` with the effect on: compacted lists of the awake bodies
   and of their shapes, rebuilt with prefix sums only when an island falls asleep or wakes.
   A loop then runs over the awake items only, so a step's cost falls with the awake count
-  (a flag test per sleeping item would still visit them all).
+  (a flag test per sleeping item would still visit them all). A world that has slept keeps
+  them when the effect goes off (``sleep.stop``: every body listed, no rest timers or
+  islands), so that toggling sleeping never instantiates the step's kernels again.
 
 A compacted set provides ``compact = True``, ``body_count`` / ``body_ids`` (awake dynamic
 bodies, ascending) and ``shape_count`` / ``shape_ids`` (their shapes, in ``dynamic_ids``

@@ -62,6 +62,7 @@ class Edits:
         """``fracture.FractureResult`` of each body of the last fracture (how exact its pieces were)."""
         self._breaking: list[int] = []  # bodies that broke in the last step, fractured before the next
         self.sleeping = False  # the sleeping effect is on (set_sleeping)
+        self.keeps_awake_lists = False  # once sleeping was on, its buffers stay the awake set (sleep.stop)
         dropped = [b for e in scene.events if e.kind == "drop" for b in e.new_bodies]
         drop_kinds = tuple(sorted({s.kind for b in dropped for s in b.shapes if s.kind in names}))
         reserve = _fracture_reserve(scene) + len(dropped) + int(reserve_pieces)
@@ -166,8 +167,9 @@ class Edits:
 
     # ------------------------------------------------------------------ sleeping
     def awake_set(self, sleeping: bool):
-        """The ``awake`` argument of the step's kernels (awake.py)."""
-        return self.buf.sleep if sleeping else EVERY
+        """The ``awake`` argument of the step's kernels (awake.py): a world that has slept keeps
+        its sleep buffers with sleeping off (sleep.stop), so that the toggle recompiles nothing."""
+        return self.buf.sleep if sleeping or self.keeps_awake_lists else EVERY
 
     @property
     def dispatch(self):
@@ -180,8 +182,9 @@ class Edits:
         its stored impulses and manifolds)."""
         if on and not self.sleeping:
             sleep.start(self.buf, self.settings.contact_margin)
+            self.keeps_awake_lists = True
         elif self.sleeping and not on:
-            sleep.wake(self.buf, self.settings.contact_margin)
+            sleep.stop(self.buf, self.settings.contact_margin)
         self.sleeping = bool(on)
 
     def precompile_sleeping(self) -> None:
@@ -201,6 +204,8 @@ class Edits:
 
     def _sleep_restore(self, snap, body_map: np.ndarray, old_shape_body: np.ndarray) -> None:
         if snap is None:
+            if self.keeps_awake_lists:  # sleeping off: the lists again, of every body
+                sleep.list_everything(self.buf, self.settings.contact_margin)
             return
         new_count = len(self.host.body_arrays["inv_mass"])
         shape_map = sleep_rebuild.shape_map_for(old_shape_body, self.host.shape_arrays["body"], body_map, new_count)

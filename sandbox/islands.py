@@ -19,7 +19,8 @@ numbered by an exclusive prefix sum over the roots (label == own index) in body 
 
 The loops take ``awake`` (awake.py): every body, or a sleeping world's awake ones. A
 sleeping body keeps the label of the island it fell asleep with (sleep.py reads it to wake
-the whole island at once).
+the whole island at once). ``active`` (1 or 0) multiplies every loop's extent: a world that
+keeps its awake lists with sleeping switched off labels nothing, in the same kernels.
 """
 
 import taichi as ti
@@ -53,8 +54,8 @@ def _edge(c: ti.template(), bodies: ti.template(), m: ti.i32):
 
 
 @ti.func
-def start_labels(isl: ti.template(), bodies: ti.template(), awake: ti.template()):
-    n = body_total(bodies, awake)
+def start_labels(isl: ti.template(), bodies: ti.template(), awake: ti.template(), active: ti.i32):
+    n = body_total(bodies, awake) * active
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):
         i = body_id(awake, k)
@@ -62,9 +63,9 @@ def start_labels(isl: ti.template(), bodies: ti.template(), awake: ti.template()
 
 
 @ti.func
-def _hook(isl: ti.template(), c: ti.template(), bodies: ti.template()):
+def _hook(isl: ti.template(), c: ti.template(), bodies: ti.template(), active: ti.i32):
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for m in range(c.manifold_count[None]):
+    for m in range(c.manifold_count[None] * active):
         a, b, joins = _edge(c, bodies, m)
         if joins:
             la = isl.label[a]
@@ -76,9 +77,9 @@ def _hook(isl: ti.template(), c: ti.template(), bodies: ti.template()):
 
 
 @ti.func
-def _jump(isl: ti.template(), bodies: ti.template(), awake: ti.template()):
+def _jump(isl: ti.template(), bodies: ti.template(), awake: ti.template(), active: ti.i32):
     """Every body points at its root (roots do not change during this pass)."""
-    n = body_total(bodies, awake)
+    n = body_total(bodies, awake) * active
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):
         i = body_id(awake, k)
@@ -90,20 +91,20 @@ def _jump(isl: ti.template(), bodies: ti.template(), awake: ti.template()):
 
 
 @ti.func
-def _verify(isl: ti.template(), c: ti.template(), bodies: ti.template()):
+def _verify(isl: ti.template(), c: ti.template(), bodies: ti.template(), active: ti.i32):
     isl.split[None] = 0
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for m in range(c.manifold_count[None]):
+    for m in range(c.manifold_count[None] * active):
         a, b, joins = _edge(c, bodies, m)
         if joins and isl.label[a] != isl.label[b]:
             ti.atomic_add(isl.split[None], 1)
 
 
 @ti.func
-def _number(isl: ti.template(), bodies: ti.template(), awake: ti.template()):
+def _number(isl: ti.template(), bodies: ti.template(), awake: ti.template(), active: ti.i32):
     """Consecutive numbers for the roots in body order (a prefix sum), then for every body its
     root's; ``count`` = the number of islands."""
-    n = body_total(bodies, awake)
+    n = body_total(bodies, awake) * active
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):
         i = body_id(awake, k)
@@ -125,22 +126,22 @@ def _number(isl: ti.template(), bodies: ti.template(), awake: ti.template()):
 
 
 @ti.func
-def label_rounds(isl: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template()):
+def label_rounds(isl: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(), active: ti.i32):
     """ROUNDS hook-and-jump rounds, then the verify pass (``split`` = 0: converged) and the
     numbering (valid once converged). Top-level loops only: call it at a kernel's top level."""
     for _ in ti.static(range(ROUNDS)):
-        _hook(isl, c, bodies)
-        _jump(isl, bodies, awake)
-    _verify(isl, c, bodies)
-    _number(isl, bodies, awake)
+        _hook(isl, c, bodies, active)
+        _jump(isl, bodies, awake, active)
+    _verify(isl, c, bodies, active)
+    _number(isl, bodies, awake, active)
 
 
 @ti.kernel
 def _label_kernel(isl: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                   first: ti.template()):
     if ti.static(first):
-        start_labels(isl, bodies, awake)
-    label_rounds(isl, c, bodies, awake)
+        start_labels(isl, bodies, awake, 1)
+    label_rounds(isl, c, bodies, awake, 1)
 
 
 def finish_labels(isl: Islands, c, bodies, awake) -> int:

@@ -68,3 +68,13 @@ def run_collecting(world, steps: int, keys=("kinetic_energy", "max_penetration")
         for k in keys:
             out[k][s] = m[k]
     return out
+
+
+def compiled_kernel_count() -> int:
+    """Kernel instances this process has compiled (or loaded from Taichi's cache) so far: a click
+    in the web sandbox that raises it pauses the running world."""
+    import gc
+
+    from taichi.lang.kernel_impl import Kernel
+
+    return sum(len(k.compiled_kernels) for k in gc.get_objects() if isinstance(k, Kernel))

@@ -8,7 +8,7 @@ from sandbox import Scene, World
 from sandbox.recording import Recorder, replay
 from sandbox.scene.spec import EventSpec
 
-from tests.helpers import TEST_ARCH, box_body, scene_dict
+from tests.helpers import TEST_ARCH, assert_same_state, box_body, compiled_kernel_count, scene_dict
 
 COLUMNS = (-3.0, 0.0, 3.0)  # three columns of three unit boxes, 2 m apart: three islands
 SLEEPING = ["friction", "restitution", "sleeping"]
@@ -166,6 +166,34 @@ def test_preparing_compiles_falling_asleep_and_waking_and_changes_no_bit(tmp_pat
         runs.append(states)
     for (state, asleep), (state_plain, asleep_plain) in zip(*runs):
         assert _same(state, state_plain) and np.array_equal(asleep, asleep_plain)
+
+
+def test_switching_sleeping_off_compiles_nothing_and_steps_as_a_world_that_never_slept():
+    """A world that has slept keeps its awake lists when sleeping goes off (sleep.stop): the
+    step's kernels stay the instances they were (the web playground paused 3.3 s, 10.5 s with a
+    cold kernel cache, when the toggle moved its kernels back to awake.EVERY), and it steps bit
+    for bit as a world that never slept, before and after a rebuild adds a body (the lists are
+    made again, of every body: sleep.list_everything)."""
+    slept, never = _world(), _world(effects=["friction", "restitution"])
+    for world in (slept, never):
+        world.step(1)
+        world.state()  # (its reads compile instances of Taichi's own copy kernels)
+    compiled = compiled_kernel_count()
+    slept.set_effects(["friction", "restitution"])
+    for _ in range(SETTLE):  # long enough for a column to have fallen asleep
+        for world in (slept, never):
+            world.step(1)
+        assert_same_state(never.state(), slept.state())
+    assert compiled_kernel_count() == compiled
+    assert not slept.asleep().any() and slept.metrics()["sleeping_bodies"] == 0
+    box = Scene.from_dict(scene_dict([box_body([-3.0, 0.0, 4.0], half=(0.4, 0.4, 0.4))])).bodies[0]
+    for world in (slept, never):
+        world.add_bodies([box])
+    for step in range(60):
+        for world in (slept, never):
+            world.step(1)
+        assert_same_state(never.state(), slept.state(), f"step {step} after the drop")
+    assert slept.state()["position"][-1, 2] < 3.5  # the box fell onto the column
 
 
 def test_removing_the_bottom_box_wakes_the_column_and_it_falls():

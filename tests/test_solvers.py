@@ -5,7 +5,7 @@ import pytest
 
 from sandbox import Scene, SimulationError, World
 
-from tests.helpers import TEST_ARCH, box_body, plane, scene_dict
+from tests.helpers import TEST_ARCH, box_body, compiled_kernel_count, plane, scene_dict
 
 PARALLEL = ["pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting"]
 DETERMINISTIC = ["pgs", "pgs-colored", "jacobi", "mass-splitting", "block-mass-splitting"]
@@ -273,15 +273,6 @@ def test_fused_step_kernels_give_the_profiled_bits(solver):
         np.testing.assert_array_equal(states[0][key], states[1][key], err_msg=key)
 
 
-def _compiled_kernel_count() -> int:
-    """Kernel instances this process has compiled (or loaded from Taichi's cache) so far."""
-    import gc
-
-    from taichi.lang.kernel_impl import Kernel
-
-    return sum(len(k.compiled_kernels) for k in gc.get_objects() if isinstance(k, Kernel))
-
-
 @pytest.mark.parametrize("solver, launches", [("mass-splitting", "one"), ("pgs-colored", "several")],
                          ids=["one-launch solve", "solve in launches"])
 def test_a_step_timed_launch_by_launch_is_the_fused_step(solver, launches):
@@ -295,12 +286,12 @@ def test_a_step_timed_launch_by_launch_is_the_fused_step(solver, launches):
     sampled.profiler.per_stage = False
     plain.step(30)
     sampled.step(29)
-    compiled = _compiled_kernel_count()
+    compiled = compiled_kernel_count()
     sampled.profiler.reset()
     sampled.profiler.enabled = True
     sampled.step(1)
     sampled.profiler.enabled = False
-    assert _compiled_kernel_count() == compiled
+    assert compiled_kernel_count() == compiled
     timing = sampled.timing_ms()
     assert timing["collide"] > 0.0 and timing["solve"] > 0.0
     assert (timing["iterate"] > 0.0) == (launches == "several")  # colouring: set-up, loop and store apart
