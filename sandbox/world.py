@@ -158,7 +158,7 @@ class World:
         compiles its own kernels on first use, so an effect that is off costs nothing. A change
         of the contact effects wakes every sleeping island; sleeping off wakes them too, and a
         world that has slept keeps its awake lists then (sleep.stop: the toggle compiles nothing,
-        the bits are a never-sleeping world's, the lists cost a few percent of a step)."""
+        the bits are a never-sleeping world's; the lists' cost is in docs/sleeping.md)."""
         from .scene.loader import EFFECTS
 
         effects = tuple(effects)
