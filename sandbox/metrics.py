@@ -67,27 +67,27 @@ def read_metrics(b) -> dict:
     }
 
 
-def read_sleep_metrics(b, sleeping: bool, dynamic_count: int) -> dict:
-    """``awake_bodies``, ``sleeping_bodies`` (dynamic bodies) and ``islands`` (awake and asleep)."""
-    from .awake import EVERY
+def read_sleep_metrics(b, sleeping: bool, dynamic_count: int, awake) -> dict:
+    """``awake_bodies``, ``sleeping_bodies`` (dynamic bodies) and ``islands`` (awake and asleep).
+    ``awake``: the step's awake set (edits.Edits.awake_set), so that labelling the islands of a
+    world that does not sleep reuses its kernels' instance."""
     from .islands import label_islands
     from .sleep import counts, islands_of
 
     if sleeping:
         c = counts(b)
     else:
-        c = {"sleeping_bodies": 0, "islands": label_islands(islands_of(b), b.contacts, b.bodies, EVERY)}
+        c = {"sleeping_bodies": 0, "islands": label_islands(islands_of(b), b.contacts, b.bodies, awake)}
     return {"awake_bodies": dynamic_count - c["sleeping_bodies"], **c}
 
 
-def island_labels(b, sleeping: bool, n: int, static: np.ndarray) -> np.ndarray:
+def island_labels(b, sleeping: bool, n: int, static: np.ndarray, awake) -> np.ndarray:
     """Each body's island label (its smallest body index), -1 for static bodies."""
-    from .awake import EVERY
     from .islands import label_islands
     from .sleep import islands_of
 
     if not sleeping:
-        label_islands(islands_of(b), b.contacts, b.bodies, EVERY)
+        label_islands(islands_of(b), b.contacts, b.bodies, awake)
     labels = islands_of(b).label.to_numpy()[:n].astype(np.int64)
     labels[static] = -1
     return labels

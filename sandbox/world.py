@@ -347,7 +347,7 @@ class World:
         mode = RELAX if self._inspection is None else self._inspection.mode
         compute_residuals(b.rows, b.contacts, b.bodies, mode)
         out = {"step": self.step_count, "time": self.step_count * self.dt, **read_metrics(b),
-               **read_sleep_metrics(b, self.sleeping, self._edits.dynamic_count)}
+               **read_sleep_metrics(b, self.sleeping, self._edits.dynamic_count, self._edits.awake_set(self.sleeping))}
         colors = self._schedule.color_count(self.buf)
         if colors is not None:
             out["colors"] = colors
@@ -367,7 +367,7 @@ class World:
         from .metrics import island_labels
 
         static = np.array([b.static for b in self._edits.bodies], dtype=bool)
-        return island_labels(self.buf, self.sleeping, self.body_count, static)
+        return island_labels(self.buf, self.sleeping, self.body_count, static, self._edits.awake_set(self.sleeping))
 
     @property
     def last_color_count(self) -> int:

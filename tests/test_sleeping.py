@@ -177,15 +177,17 @@ def test_switching_sleeping_off_compiles_nothing_and_steps_as_a_world_that_never
     slept, never = _world(), _world(effects=["friction", "restitution"])
     for world in (slept, never):
         world.step(1)
-        world.state()  # (its reads compile instances of Taichi's own copy kernels)
+        world.state(), world.metrics(), world.island_labels()  # (reads compile Taichi's copy kernels)
     compiled = compiled_kernel_count()
     slept.set_effects(["friction", "restitution"])
     for _ in range(SETTLE):  # long enough for a column to have fallen asleep
         for world in (slept, never):
             world.step(1)
         assert_same_state(never.state(), slept.state())
+    assert slept.metrics() == never.metrics()  # its islands counted over its lists: 3, none asleep
+    assert np.array_equal(slept.island_labels(), never.island_labels())
     assert compiled_kernel_count() == compiled
-    assert not slept.asleep().any() and slept.metrics()["sleeping_bodies"] == 0
+    assert not slept.asleep().any() and slept.metrics()["islands"] == 3
     box = Scene.from_dict(scene_dict([box_body([-3.0, 0.0, 4.0], half=(0.4, 0.4, 0.4))])).bodies[0]
     for world in (slept, never):
         world.add_bodies([box])
