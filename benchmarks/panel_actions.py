@@ -2,8 +2,8 @@
 
     python benchmarks/panel_actions.py [--scene playground] [--steps 3]
 
-Builds the scene's world as the web sandbox does (web/simulation.py: debris kinds reserved,
-``prepare_edits``, the sampled step timed launch by launch), steps it past its first steps, then
+Builds the scene's world as the web sandbox does (``web.simulation.web_world``: debris kinds
+reserved, ``prepare_edits``, the sampled step timed launch by launch), steps it past its first steps, then
 applies the panel's effect toggles and solver switches one after another, as events between
 steps, and prints the wall time of each of the next ``--steps`` steps, a ``World.metrics()`` read
 included (the panel reads one per published snapshot). A first step of seconds is a compile (new
@@ -32,15 +32,12 @@ def main() -> None:
     ap.add_argument("--steps", type=int, default=3, help="steps timed after each action")
     args = ap.parse_args()
 
-    from sandbox import Scene, World
+    from sandbox import Scene
     from sandbox.scene.library import resolve_scene
     from sandbox.scene.spec import EventSpec
-    from web.simulation import DEBRIS_KINDS, DEBRIS_RESERVE
+    from web.simulation import web_world
 
-    world = World(Scene.load(resolve_scene(args.scene)), arch="cpu", profile=False, reserve_pieces=DEBRIS_RESERVE,
-                  reserve_kinds=DEBRIS_KINDS)
-    world.prepare_edits()
-    world.profiler.per_stage = False
+    world = web_world(Scene.load(resolve_scene(args.scene)), "cpu")
     world.step(3)
     world.metrics()
     print(f"# {platform.machine()}, {os.cpu_count()} CPUs; {args.scene}, {world.solver} x {world.iterations}; "

@@ -205,7 +205,7 @@ class Edits:
     def _sleep_restore(self, snap, body_map: np.ndarray, old_shape_body: np.ndarray) -> None:
         if snap is None:
             if self.keeps_awake_lists:  # sleeping off: the lists again, of every body
-                sleep.list_everything(self.buf, self.settings.contact_margin)
+                sleep.start(self.buf, self.settings.contact_margin, resting=False)
             return
         new_count = len(self.host.body_arrays["inv_mass"])
         shape_map = sleep_rebuild.shape_map_for(old_shape_body, self.host.shape_arrays["body"], body_map, new_count)

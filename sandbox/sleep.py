@@ -107,7 +107,7 @@ def buffers_of(buf) -> SleepBuffers:
 # ---------------------------------------------------------------------------- kernels
 @ti.func
 def _refresh(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp: ti.template(), err: ti.template(),
-                          margin: ti.f32):
+             margin: ti.f32):
     """The awake lists, the sleeping shapes' list and grid, and the sleeping counts, from ``asleep``."""
     nb = bodies.count[None]
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
@@ -282,12 +282,15 @@ def _mark(sl: ti.template(), ids: ti.types.ndarray(dtype=ti.i32, ndim=1)):
 
 
 # ---------------------------------------------------------------------------- host side
-def start(buf, margin: float) -> None:
-    """Turn sleeping on for a world: every body awake, its islands labelled from the last contacts."""
+def start(buf, margin: float, resting: bool = True) -> None:
+    """Every body awake and listed. ``resting``: turn sleeping on (rest timers run, the islands
+    labelled from the last contacts); False: the lists only, for a world that keeps them with
+    sleeping off (``stop``), after a rebuild."""
     sl = buffers_of(buf)
     _start(sl, buf.shapes, buf.bodies, buf.bp, buf.errors, margin)
-    sl.resting[None] = 1
-    sl.status[AWAKE_ISLANDS] = label_islands(sl.islands, buf.contacts, buf.bodies, sl)
+    sl.resting[None] = int(resting)
+    if resting:
+        sl.status[AWAKE_ISLANDS] = label_islands(sl.islands, buf.contacts, buf.bodies, sl)
     note_grid(sl)
 
 
@@ -299,15 +302,6 @@ def stop(buf, margin: float) -> None:
     with a warm kernel cache, 10.5 s with a cold one)."""
     wake(buf, margin)
     buf.sleep.resting[None] = 0
-
-
-def list_everything(buf, margin: float) -> None:
-    """After a rebuild of a world that keeps its awake set with sleeping off (``stop``): every
-    body awake and listed, nothing resting."""
-    sl = buffers_of(buf)
-    _start(sl, buf.shapes, buf.bodies, buf.bp, buf.errors, margin)
-    sl.resting[None] = 0
-    note_grid(sl)
 
 
 def after_step(buf, h: float, settings, labelled: bool = False) -> None:

@@ -173,7 +173,7 @@ def test_switching_sleeping_off_compiles_nothing_and_steps_as_a_world_that_never
     step's kernels stay the instances they were (the web playground paused 3.3 s, 10.5 s with a
     cold kernel cache, when the toggle moved its kernels back to awake.EVERY), and it steps bit
     for bit as a world that never slept, before and after a rebuild adds a body (the lists are
-    made again, of every body: sleep.list_everything)."""
+    made again, of every body: sleep.start with resting=False)."""
     slept, never = _world(), _world(effects=["friction", "restitution"])
     for world in (slept, never):
         world.step(1)

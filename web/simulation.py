@@ -32,6 +32,19 @@ PUBLISH_HZ = 30.0  # snapshots per second while playing: the renderer draws at m
 BODY_LIST_KINDS = ("drop", "remove", "fracture")
 
 
+def web_world(scene: Scene, arch: str, **kwargs):
+    """A world as the web sandbox runs it: room for the panel's debris and its shape kinds,
+    what a drop launches compiled now (not on the first click), and a sampled step timed launch
+    by launch, the fused step's own kernels (profile.py: a per-stage sample compiled a second
+    set). ``kwargs``: World's solver, iterations, formulation and solver options."""
+    from sandbox import World
+
+    world = World(scene, arch=arch, profile=False, reserve_pieces=DEBRIS_RESERVE, reserve_kinds=DEBRIS_KINDS, **kwargs)
+    world.prepare_edits()
+    world.profiler.per_stage = False
+    return world
+
+
 @dataclass
 class Command:
     label: str
@@ -118,8 +131,6 @@ class Simulation:
         """(Re)build the world: from ``scene`` (parsed off this thread: a mesh scene's first load
         runs CoACD, which must not stall the running world), or the current scene (reset).
         A failure leaves the old world running."""
-        from sandbox import World
-
         if scene is None:
             scene = self.world.scene if self.world is not None else Scene.load(self.scene_path)
         old = self.world
@@ -127,11 +138,8 @@ class Simulation:
         iterations = self.world.iterations if self.world is not None else self.iterations
         options = dict(self.world.solver_options) if self.world is not None else {}
         formulation = self.world.formulation if self.world is not None else self.formulation
-        world = World(scene, solver=solver, iterations=iterations, arch=self.arch, profile=False, formulation=formulation,
-                      reserve_pieces=DEBRIS_RESERVE, reserve_kinds=DEBRIS_KINDS,
-                      **{k: v for k, v in options.items() if v is not None})
-        world.prepare_edits()  # compile what a drop launches now, not on the first click
-        world.profiler.per_stage = False  # a sampled step times the fused launches: nothing more to compile
+        world = web_world(scene, self.arch, solver=solver, iterations=iterations, formulation=formulation,
+                          **{k: v for k, v in options.items() if v is not None})
         self.inspection = None  # an inspected step of the old world goes with it
         self.stop_recording()
         twin_solver = self.twin.solver if self.twin is not None else None
@@ -157,8 +165,6 @@ class Simulation:
             self._set_twin(solver)
 
     def _set_twin(self, solver: str | None) -> None:
-        from sandbox import World
-
         if self.twin is not None:
             self.twin.close()
             self.twin = None
@@ -166,10 +172,7 @@ class Simulation:
         if solver is None:
             return
         w = self.world
-        self.twin = World(w.scene, solver=solver, iterations=w.iterations, arch=self.arch, profile=False,
-                          formulation=w.formulation, reserve_pieces=DEBRIS_RESERVE, reserve_kinds=DEBRIS_KINDS)
-        self.twin.prepare_edits()
-        self.twin.profiler.per_stage = False
+        self.twin = web_world(w.scene, self.arch, solver=solver, iterations=w.iterations, formulation=w.formulation)
         pos = w.state(("position",))["position"]
         self._twin_offset = float(np.ptp(pos[:, 0])) + COMPARE_GAP if len(pos) else COMPARE_GAP
         self._twin_generation += 1
