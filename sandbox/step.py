@@ -275,7 +275,7 @@ class Stepper:
                 if watch_push:
                     b.rows.fast_push[None] = 0
                 for j in range(sweeps):
-                    schedule.sweep(b, awake, BIASED, loop.friction)
+                    schedule.sweep(b, awake, BIASED, loop.friction, substep=i)
                     if record_residuals:
                         self.residual_history.append(residual_rms(b, BIASED))
                     if pause:
@@ -286,7 +286,7 @@ class Stepper:
                 n_relax = relax + (int(b.rows.fast_push[None]) if watch_push else 0)
                 for j in range(n_relax):
                     then_warm = int(fold and i < k - 1 and j == n_relax - 1)
-                    schedule.sweep(b, awake, RELAX, loop.friction, then_warm, loop.gravity, loop.h)
+                    schedule.sweep(b, awake, RELAX, loop.friction, then_warm, loop.gravity, loop.h, i)
                     if pause:
                         yield Sweep(i, k, "relax", j, n_relax, bool(then_warm))
             if loop.track:

@@ -19,11 +19,8 @@ KNOWN_FAILURES = {
     # CPU machine, with the preload (solvers/contact_spring.py): it turned 23 cells of the matrix
     # from FAIL to PASS (1:100 at 4 iterations, 1:1000 and the 1 mm cubes at 15, the 20-box stack
     # at 4 with mass splitting) and none the other way.
-    ("heavy_on_light_1to100", "block-mass-splitting@4"): "the 100 kg top walks 160 mm and sinks 40 mm at 4 "
-                                                         "iterations (criterion 20 mm)",
     ("heavy_on_light_1to1000", "*@4"): "at 4 iterations the PGS family and block mass splitting tip the column "
                                        "(3.9-4.7 m), mass splitting and Jacobi let the 1000 kg top sink 0.6-0.7 m",
-    ("heavy_on_light_1to1000", "pgs-colored@15"): "the 1000 kg top drifts 20.3 mm at 15 iterations (criterion 20 mm)",
     ("heavy_on_light_1to1000", "block-mass-splitting@15"): "the 1000 kg top drifts 24.6 mm at 15 iterations",
     ("stack_3_of_0.001m", "*@4"): "1 mm cubes sink 0.8-1 mm at 4 iterations (criterion 5 % of the size)",
     ("stack_3_of_0.001m", "block-mass-splitting@15"): "the top 1 mm cube drifts 0.1 mm at 15 iterations "
@@ -51,12 +48,16 @@ KNOWN_FAILURES = {
     # keeps soft, docs/method-notes.md)
     ("nudged_stack_20", "*@4"): "a 1 mm/s nudge of the top box topples the column at 4 iterations with every solver "
                                 "(top 0.4-13 m)",
-    ("nudged_stack_20", "pgs"): "serial PGS sways the nudged column by 22 mm at 15 iterations (criterion 10 mm)",
     ("stack_20", "block-mass-splitting@4"): "the column topples at 4 iterations (peak 16 m/s)",
     ("stack_20", "pgs-colored@4"): "the column topples at 4 iterations",
-    # serial PGS's sway grows at 2 and 4 iterations until the column falls (tests/test_solver_robustness.py)
-    # and stays at ~2 cm at 8-30
-    ("stack_20", "pgs"): "the top sways up to 22 mm at 15 iterations, 0.72 m at 4 (criterion 10 mm)",
+    # serial PGS's sway grows at 2 and 4 iterations until the column falls (tests/test_solver_robustness.py);
+    # at 8-30 it stands since a Gauss-Seidel pass starts each manifold at its next point every substep
+    # (rows.manifold_shift; it swayed 22-26 mm there with one fixed order)
+    ("stack_20", "pgs@4"): "the column topples at 4 iterations with serial PGS",
+    # the price of that order, 2026-11-26: the card house's top pair, whose feet slide 6-10 mm in the first
+    # second at 4 iterations with either order, keeps sliding when the order turns (docs/method-notes.md)
+    ("leaning_planks", "pgs@4"): "the card house collapses at 4 iterations with serial PGS (a card moves 1.6 m; "
+                                 "with one fixed visiting order it stood at 4 and 6 and fell at 3 and 5)",
 }
 
 

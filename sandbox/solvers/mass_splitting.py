@@ -62,7 +62,7 @@ from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, L
                              RESTITUTION_THRESHOLD, SPLIT_BOUND, STEP_DT, support_push)
 from .impact_carry import clamp_impact_carry
 from .rolling import rolling_impulse
-from .rows import BIASED, ROLLING, point_impulse, pushes_fast, solve_point
+from .rows import BIASED, ROLLING, manifold_point, manifold_shift, point_impulse, pushes_fast, solve_point
 from .split_scales import block_weights
 
 vec3 = ti.math.vec3
@@ -369,7 +369,7 @@ def warm_start_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), b
 
 @ti.func
 def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
-                mode: ti.template(), friction: ti.template(), then_warm: ti.i32, k: ti.i32) -> ti.i32:
+                mode: ti.template(), friction: ti.template(), then_warm: ti.i32, k: ti.i32, substep: ti.i32) -> ti.i32:
     """Block k solved on its own copies of its bodies' velocities (read from before the
     sweep); the changes, weighted, go to its two slots. Returns 1 when a biased row of it
     pushes fast (rows.pushes_fast: its substep gets a second relax sweep), else 0."""
@@ -377,7 +377,11 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
     va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
     vb0, wb0 = bodies.lin_vel[b], bodies.ang_vel[b]
     va, wa, vb, wb = va0, wa0, vb0, wb0
-    for q in range(start, start + count):
+    shift = 0
+    if ti.static(kind != PER_POINT):
+        shift = manifold_shift(count, substep)
+    for i in range(count):
+        q = manifold_point(start, count, shift, i)
         va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
     fast = 0
     if ti.static(mode == BIASED):
@@ -406,7 +410,7 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
 @ti.func
 def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                  kind: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, gravity: vec3,
-                 h: ti.f32, active: ti.i32 = 1):
+                 h: ti.f32, substep: ti.i32, active: ti.i32 = 1):
     """One Jacobi sweep over all blocks from the same velocities, then the per-body merge.
 
     ``then_warm`` (the last relax sweep of a substep that has a successor, in a step without an
@@ -418,7 +422,7 @@ def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
     finds one writes the same 1). ``active`` = 0 runs both loops zero times (they stay
     top-level, parallel loops)."""
     for k in range(s.block_count[None] * active):
-        if sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k):
+        if sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k, substep):
             rows.fast_push[None] = 1
     gather_slots(s, bodies, awake, gravity * h * ti.cast(then_warm, ti.f32), active)
 
@@ -432,5 +436,5 @@ def warm_start(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: 
 @ti.kernel
 def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                  kind: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, gravity: vec3,
-                 h: ti.f32):
-    sweep_blocks(s, rows, c, bodies, awake, kind, mode, friction, then_warm, gravity, h)
+                 h: ti.f32, substep: ti.i32):
+    sweep_blocks(s, rows, c, bodies, awake, kind, mode, friction, then_warm, gravity, h, substep)

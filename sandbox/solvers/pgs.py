@@ -18,18 +18,24 @@ overflow colour solved serially (as Box2D does).
 import numpy as np
 import taichi as ti
 
-from .rows import solve_point
+from .rows import manifold_point, manifold_shift, solve_point
 
 MAX_COLORS = 64
 
 
 @ti.func
-def solve_manifold(rows: ti.template(), c: ti.template(), bodies: ti.template(), m: ti.i32, mode: ti.template(), friction: ti.template()):
+def solve_manifold(rows: ti.template(), c: ti.template(), bodies: ti.template(), m: ti.i32, mode: ti.template(),
+                   friction: ti.template(), substep: ti.i32):
+    """Manifold m's points one after another on its bodies' velocities, starting where the
+    ``substep``-th substep of the step starts (rows.manifold_shift)."""
     a = c.m_body_a[m]
     b = c.m_body_b[m]
     va, wa = bodies.lin_vel[a], bodies.ang_vel[a]
     vb, wb = bodies.lin_vel[b], bodies.ang_vel[b]
-    for q in range(c.m_start[m], c.m_start[m] + c.m_count[m]):
+    start, count = c.m_start[m], c.m_count[m]
+    shift = manifold_shift(count, substep)
+    for i in range(count):
+        q = manifold_point(start, count, shift, i)
         va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
     if bodies.inv_mass[a] > 0.0:
         bodies.lin_vel[a] = va
@@ -41,18 +47,18 @@ def solve_manifold(rows: ti.template(), c: ti.template(), bodies: ti.template(),
 
 @ti.func
 def pgs_sweep(rows: ti.template(), c: ti.template(), bodies: ti.template(), mode: ti.template(),
-              friction: ti.template()):
+              friction: ti.template(), substep: ti.i32):
     """One serial sweep over the manifolds in buffer order (serialized also at a kernel's top level)."""
     ti.loop_config(serialize=True)
     for m in range(c.manifold_count[None]):
-        solve_manifold(rows, c, bodies, m, mode, friction)
+        solve_manifold(rows, c, bodies, m, mode, friction, substep)
 
 
 @ti.kernel
 def pgs_serial(rows: ti.template(), c: ti.template(), bodies: ti.template(), mode: ti.template(),
-               friction: ti.template()):
+               friction: ti.template(), substep: ti.i32):
     """``pgs_sweep`` as its own launch (the stage-by-stage path)."""
-    pgs_sweep(rows, c, bodies, mode, friction)
+    pgs_sweep(rows, c, bodies, mode, friction, substep)
 
 
 @ti.data_oriented
@@ -152,30 +158,30 @@ def color_manifolds(col: ti.template(), c: ti.template(), bodies: ti.template(),
 
 @ti.kernel
 def solve_color(rows: ti.template(), c: ti.template(), bodies: ti.template(), col: ti.template(), k0: ti.i32,
-                k1: ti.i32, mode: ti.template(), friction: ti.template()):
+                k1: ti.i32, mode: ti.template(), friction: ti.template(), substep: ti.i32):
     for idx in range(k0, k1):
-        solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
+        solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction, substep)
 
 
 @ti.kernel
 def solve_overflow(rows: ti.template(), c: ti.template(), bodies: ti.template(), col: ti.template(), k0: ti.i32,
-                   k1: ti.i32, mode: ti.template(), friction: ti.template()):
+                   k1: ti.i32, mode: ti.template(), friction: ti.template(), substep: ti.i32):
     ti.loop_config(serialize=True)
     for idx in range(k0, k1):
-        solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
+        solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction, substep)
 
 
 @ti.func
 def colored_sweep_in_order(rows: ti.template(), c: ti.template(), bodies: ti.template(), col: ti.template(),
-                           mode: ti.template(), friction: ti.template()):
+                           mode: ti.template(), friction: ti.template(), substep: ti.i32):
     """The colours in sequence and each colour's manifolds one after another, for use inside a
     serialized loop (solvers/substep.py). No two manifolds of a colour share a dynamic body, so
     this gives bit for bit what the parallel launches per colour give."""
     for k in range(col.color_count[None]):
         for idx in range(col.color_start[k], col.color_start[k + 1]):
-            solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
+            solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction, substep)
     for idx in range(col.color_start[MAX_COLORS], col.color_start[MAX_COLORS + 1]):
-        solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
+        solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction, substep)
 
 
 def color_ranges(col: Coloring) -> np.ndarray:

@@ -128,11 +128,13 @@ class Schedule:
         mass_splitting.warm_start(buf.blocks, buf.rows, buf.contacts, buf.bodies, awake, self.kind, friction, gravity,
                                   h)
 
-    def sweep(self, buf, awake, mode: int, friction: int, then_warm: int = 0, gravity=None, h: float = 0.0) -> None:
-        """One pass over every contact row (``then_warm``: mass_splitting.sweep_blocks)."""
+    def sweep(self, buf, awake, mode: int, friction: int, then_warm: int = 0, gravity=None, h: float = 0.0,
+              substep: int = 0) -> None:
+        """One pass over every contact row (``then_warm``: mass_splitting.sweep_blocks), in substep
+        ``substep`` of the step (rows.manifold_shift)."""
         rows, c, bodies = buf.rows, buf.contacts, buf.bodies
         if self.info.visit == "serial":
-            pgs.pgs_serial(rows, c, bodies, mode, friction)
+            pgs.pgs_serial(rows, c, bodies, mode, friction, substep)
         elif self.info.visit == "colored":
             col, overflow = buf.coloring, pgs.MAX_COLORS
             if self._color_starts is None:  # one launch per colour: the ranges come to the host once a step
@@ -140,13 +142,14 @@ class Schedule:
                 self._color_count = int(col.color_count[None])
             starts = self._color_starts
             for k in range(self._color_count):
-                pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]), mode, friction)
+                pgs.solve_color(rows, c, bodies, col, int(starts[k]), int(starts[k + 1]), mode, friction, substep)
             if starts[overflow + 1] > starts[overflow]:
                 pgs.solve_overflow(rows, c, bodies, col, int(starts[overflow]), int(starts[overflow + 1]), mode,
-                                   friction)
+                                   friction, substep)
         else:
             g = gravity if gravity is not None else ti.math.vec3(0.0)
-            mass_splitting.jacobi_sweep(buf.blocks, rows, c, bodies, awake, self.kind, mode, friction, then_warm, g, h)
+            mass_splitting.jacobi_sweep(buf.blocks, rows, c, bodies, awake, self.kind, mode, friction, then_warm, g, h,
+                                        substep)
 
     def restitution(self, buf, awake, friction: int, tolerance: float, max_sweeps: int) -> int:
         """The bounce pass after the substeps: restitution sweeps of this schedule until no
@@ -196,7 +199,7 @@ class Schedule:
             k = loop.iterations
             for i in range(k):
                 warm_here, then_warm = int(i == 0 or not fold), int(fold and i < k - 1)
-                substep.substep_parallel(*self._loop_args(loop), warm_here, then_warm)
+                substep.substep_parallel(*self._loop_args(loop), warm_here, then_warm, i)
         else:
             raise ValueError(f"iterate: {launch!r} is not a fused launch")
 

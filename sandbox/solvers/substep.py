@@ -52,13 +52,13 @@ PGS, PGS_COLORED, BLOCKS = 0, 1, 2
 @ti.func
 def _sweep(schedule: ti.template(), s: ti.template(), rows: ti.template(), c: ti.template(),
            bodies: ti.template(), awake: ti.template(), col: ti.template(), kind: ti.template(), mode: ti.template(),
-           friction: ti.template(), then_warm: ti.i32, gravity: vec3, h: ti.f32):
+           friction: ti.template(), then_warm: ti.i32, gravity: vec3, h: ti.f32, substep: ti.i32):
     if ti.static(schedule == PGS):
-        pgs_sweep(rows, c, bodies, mode, friction)
+        pgs_sweep(rows, c, bodies, mode, friction, substep)
     elif ti.static(schedule == PGS_COLORED):
-        colored_sweep_in_order(rows, c, bodies, col, mode, friction)
+        colored_sweep_in_order(rows, c, bodies, col, mode, friction, substep)
     else:
-        sweep_blocks(s, rows, c, bodies, awake, kind, mode, friction, then_warm, gravity, h)
+        sweep_blocks(s, rows, c, bodies, awake, kind, mode, friction, then_warm, gravity, h, substep)
 
 
 @ti.func
@@ -110,7 +110,7 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
         if ti.static(schedule == BLOCKS):
             rows.fast_push[None] = 0
         for _sb in range(sweeps):
-            _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
+            _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h, it)
         positions_loop(bodies, awake, motion, h, err)
         n_relax = relax
         if ti.static(schedule == BLOCKS):
@@ -119,7 +119,7 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
             then_warm = 0
             if ti.static(fold):
                 then_warm = folds_this_step(rows) if it < iterations - 1 and sr == n_relax - 1 else 0
-            _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h)
+            _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h, it)
         if ti.static(track):
             add_step_impulses_loop(rows, c)
 
@@ -135,13 +135,13 @@ def iterate_in_order(b: ti.template(), kind: ti.template(), schedule: ti.templat
 @ti.kernel
 def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
                      warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
-                     h: ti.f32, first: ti.i32, then_warm: ti.i32):
+                     h: ti.f32, first: ti.i32, then_warm: ti.i32, substep: ti.i32):
     """One substep of ``h`` with one sweep each (the Jacobi family: a second relax sweep after a
     fast push, Settings.relax_push_speed; its loops run zero times otherwise), every phase's
     loops parallel, in one launch. ``first``: this substep does its own gravity and warm start;
     ``then_warm``: its last relax sweep does the next one's (both 1 / 0 decided by
     ``Schedule.iterate`` with ``folds_warm_start``; a step with an impact row overrides them
-    here to 1 / 0, folds_this_step)."""
+    here to 1 / 0, folds_this_step). ``substep``: its index in the step (rows.manifold_shift)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
@@ -152,15 +152,15 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, warm_here)
     if ti.static(schedule == BLOCKS):
         rows.fast_push[None] = 0
-    _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h)
+    _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h, substep)
     positions_loop(bodies, awake, motion, h, err)
     if ti.static(schedule == BLOCKS):
         # a fast push: a second relax sweep, which then carries the next substep's warm start
         extra = rows.fast_push[None]
-        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, warm_next * (1 - extra), gravity, h)
-        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, warm_next, gravity, h, extra)
+        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, warm_next * (1 - extra), gravity, h, substep)
+        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, warm_next, gravity, h, substep, extra)
     else:
-        _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, warm_next, gravity, h)
+        _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, warm_next, gravity, h, substep)
     if ti.static(track):
         add_step_impulses_loop(rows, c)
 
@@ -178,7 +178,7 @@ def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int) 
 def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
                  rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
                  mode: ti.template(), friction: ti.template(), then_warm: ti.i32, warm_only: ti.template(),
-                 fast_slot: ti.i32 = 0) -> ti.i32:
+                 substep: ti.i32 = 0, fast_slot: ti.i32 = 0) -> ti.i32:
     """Phase p over all blocks: their warm start, or one sweep (a biased one marks a fast push
     in ``team.fast[fast_slot]``, _team_member). Returns the next phase."""
     n = s.block_count[None]
@@ -187,7 +187,7 @@ def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
         for k in range(lo, hi):
             if ti.static(warm_only):
                 warm_block(s, rows, c, bodies, kind, friction, k)
-            elif sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k):
+            elif sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k, substep):
                 team.fast[fast_slot] = 1  # a plain store before this member's "finished" increment
         tm.finish(team, p, hi - lo)
         lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
@@ -224,7 +224,7 @@ def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32,
 @ti.func
 def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, rows: ti.template(),
                   c: ti.template(), bodies: ti.template(), col: ti.template(), mode: ti.template(),
-                  friction: ti.template()) -> ti.i32:
+                  friction: ti.template(), substep: ti.i32) -> ti.i32:
     """One pgs-colored sweep: a phase per colour, then the overflow colour as one item
     (its manifolds may share bodies, so one member solves them all, in order)."""
     for kc in range(col.color_count[None]):
@@ -233,7 +233,7 @@ def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
         lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
         while lo < hi:
             for idx in range(lo, hi):
-                solve_manifold(rows, c, bodies, col.sorted[k0 + idx], mode, friction)
+                solve_manifold(rows, c, bodies, col.sorted[k0 + idx], mode, friction, substep)
             tm.finish(team, p, hi - lo)
             lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
         tm.wait(team, p, n)
@@ -241,7 +241,7 @@ def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
     lo, hi, _ = tm.next_chunk(team, p, 1, member, members, 0)
     if lo < hi:
         for idx in range(col.color_start[MAX_COLORS], col.color_start[MAX_COLORS + 1]):
-            solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction)
+            solve_manifold(rows, c, bodies, col.sorted[idx], mode, friction, substep)
         tm.finish(team, p, 1)
     tm.wait(team, p, 1)
     return p + 1
@@ -252,16 +252,17 @@ def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
                   rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                   motion: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                   schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3,
-                  h: ti.f32, fast_slot: ti.i32 = 0) -> ti.i32:
-    """One sweep; ``pose_after``: the bodies' poses advance right after it (the biased
-    solve's last sweep), fused into the Jacobi family's gather. ``fast_slot``: _block_phase."""
+                  h: ti.f32, substep: ti.i32, fast_slot: ti.i32 = 0) -> ti.i32:
+    """One sweep of substep ``substep`` (rows.manifold_shift); ``pose_after``: the bodies' poses
+    advance right after it (the biased solve's last sweep), fused into the Jacobi family's gather.
+    ``fast_slot``: _block_phase."""
     if ti.static(schedule == PGS_COLORED):
-        p = _color_phases(team, p, member, members, rows, c, bodies, col, mode, friction)
+        p = _color_phases(team, p, member, members, rows, c, bodies, col, mode, friction, substep)
         if pose_after:
             p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, POSE, vec3(0.0), gravity, h)
     else:
         p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, mode, friction, then_warm, False,
-                         fast_slot)
+                         substep, fast_slot)
         dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
         if pose_after:
             p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GATHER_POSE, dv_extra, gravity,
@@ -310,7 +311,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
         fast_slot = p  # this substep's biased phases mark a fast push here; read once they are all done
         for sb in range(sweeps):
             p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
-                              BIASED, friction, 0, int(sb == sweeps - 1), gravity, h, fast_slot)
+                              BIASED, friction, 0, int(sb == sweeps - 1), gravity, h, it, fast_slot)
         n_relax = relax
         if ti.static(schedule == BLOCKS):
             n_relax = relax + ti.atomic_add(team.fast[fast_slot], 0)  # the same for every member: never reset in a loop
@@ -319,7 +320,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
             if ti.static(fold):
                 then_warm = folds_this_step(rows) if it < iterations - 1 and sr == n_relax - 1 else 0
             p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
-                              RELAX, friction, then_warm, 0, gravity, h)
+                              RELAX, friction, then_warm, 0, gravity, h, it)
         if ti.static(track):
             p = _point_phase(team, p, member, members, c, rows)
 

@@ -206,7 +206,7 @@ def test_one_sweep_on_a_resting_box_gives_the_impulses_worked_out_by_hand(restin
     buf.bodies.ang_vel[0] = w0
     buf.rows.lam.fill(0.0)
     ms.jacobi_sweep(buf.blocks, buf.rows, buf.contacts, buf.bodies, EVERY, ms.PER_POINT, RELAX, True, 0,
-                    ti.math.vec3(0.0), 0.0)
+                    ti.math.vec3(0.0), 0.0, 0)
 
     r = buf.rows.ra.to_numpy()[:4].astype(np.float64)
     np.testing.assert_allclose(np.abs(r[:, :2]), np.tile(HALF[:2], (4, 1)), atol=1e-6)  # the bottom corners
