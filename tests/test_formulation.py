@@ -131,8 +131,9 @@ def _paper_pyramid_ke(solver: str, **options) -> float:
 @pytest.mark.xfail(strict=True, reason=(
     "measured 2026-11-24 (benchmarks/paper_jitter.py, docs/formulation.md): under the paper's scheme at 15 "
     "iterations the 210-box pyramid does not come to rest with any solver: shuffled parallel PGS 7.6e3 J, "
-    "mass splitting 4.7e4 J (thrown 20 m; 5.4e3 and 3.0e4 J on 2026-11-27). Warm starting re-applies last step's impulse, so a solve that "
-    "converges less than ~45 % of a slow mode per step extrapolates it, and Baumgarte's 0.8 feeds it"))
+    "mass splitting 4.7e4 J (thrown 20 m; 5.4e3 and 3.0e4 J on 2026-11-27). Warm starting re-applies last "
+    "step's impulse, so a solve that converges less than ~45 % of a slow mode per step extrapolates it, "
+    "and Baumgarte's 0.8 feeds it"))
 def test_paper_scheme_mass_splitting_is_100x_calmer_than_shuffled_parallel_pgs():
     """Issue 18's figure: the seeds' claim under the seeds' own scheme."""
     ratio = _paper_pyramid_ke("pgs-colored", shuffle=True) / _paper_pyramid_ke("mass-splitting")

@@ -52,7 +52,7 @@ KNOWN_FAILURES = {
     ("stack_20", "pgs-colored@4"): "the column topples at 4 iterations",
     # serial PGS's sway grows at 2 and 4 iterations until the column falls (tests/test_solver_robustness.py);
     # at 8-30 it stands since a Gauss-Seidel pass starts each manifold at its next point every substep
-    # (rows.manifold_shift; it swayed 22-26 mm there with one fixed order)
+    # (visit_order.visited_point; it swayed 22-26 mm there with one fixed order)
     ("stack_20", "pgs@4"): "the column topples at 4 iterations with serial PGS",
     # the price of that order, 2026-11-26: the card house's top pair, whose feet slide 6-10 mm in the first
     # second at 4 iterations with either order, keeps sliding when the order turns (docs/method-notes.md)

@@ -97,8 +97,9 @@ STACK_SWAY = {
     # PGS's sweep order nudges it every step; mass splitting passes here only because its sweep never
     # moves a straight column sideways: nudged by 1 mm/s it falls at 4 and 8 iterations too
     # (tests/test_hard_cases.py, nudged_stack_20; docs/method-notes.md)
-    # (2026-11-26, the visiting order turning every substep, rows.manifold_shift: the same growth, from a
-    # smaller seed: at 4 iterations drift 3 / 63 / 441 mm at steps 100 / 400 / 600, fallen by 800)
+    # (2026-11-26, the visiting order turning every substep, visit_order.visited_point: the same
+    # growth from a smaller seed: at 4 iterations drift 3 / 63 / 441 mm at steps 100 / 400 / 600,
+    # fallen by 800)
     ("pgs", 2): "serial PGS at 2 iterations: the 20-box stack's lean grows until it topples (0.13 m at step 200, "
                 "1.1 m at 400)",
     ("pgs", 4): "serial PGS at 4 iterations: the 20-box stack's lean grows ~2.7x per 100 steps from step 200 "

@@ -9,7 +9,7 @@ from tests.helpers import TEST_ARCH
 def test_stack_20_stands_for_10_seconds_with_pgs_10_iterations():
     """The scene's own solver: no box leaves the column, penetration < 1 cm, top drift < 1 cm
     (method.md 2.2). With one fixed order inside each manifold serial PGS rocked it (the top
-    swayed ~3 cm with a period of ~8 s); the order now turns every substep (rows.manifold_shift)."""
+    swayed ~3 cm with a period of ~8 s); the order now turns every substep (visit_order.visited_point)."""
     scene = Scene.load("scenes/stack_20.toml")
     world = World(scene, solver="pgs", iterations=10, arch=TEST_ARCH)
     start = world.state()["position"].copy()

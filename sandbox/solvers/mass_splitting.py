@@ -62,8 +62,9 @@ from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, L
                              RESTITUTION_THRESHOLD, SPLIT_BOUND, STEP_DT, support_push)
 from .impact_carry import clamp_impact_carry
 from .rolling import rolling_impulse
-from .rows import BIASED, ROLLING, manifold_point, manifold_shift, point_impulse, pushes_fast, solve_point
+from .rows import BIASED, ROLLING, point_impulse, pushes_fast, solve_point
 from .split_scales import block_weights
+from .visit_order import visited_point
 
 vec3 = ti.math.vec3
 
@@ -377,11 +378,10 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
     va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
     vb0, wb0 = bodies.lin_vel[b], bodies.ang_vel[b]
     va, wa, vb, wb = va0, wa0, vb0, wb0
-    shift = 0
-    if ti.static(kind != PER_POINT):
-        shift = manifold_shift(count, substep)
     for i in range(count):
-        q = manifold_point(start, count, shift, i)
+        q = start + i  # a per-point block has one point
+        if ti.static(kind != PER_POINT):
+            q = visited_point(start, count, substep, i)
         va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
     fast = 0
     if ti.static(mode == BIASED):

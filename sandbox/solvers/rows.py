@@ -105,31 +105,6 @@ class Rows:
 
 BIASED, RELAX, RESTITUTION = 0, 1, 2
 
-
-@ti.func
-def manifold_shift(count: ti.i32, substep: ti.i32) -> ti.i32:
-    """Which of a manifold's ``count`` points a Gauss-Seidel pass visits first in substep
-    ``substep`` of a step: the next one round the manifold every substep. The first point a pass
-    reaches takes more of the load than the others and leaves its bodies a small turn, which the
-    warm start carries on: with one fixed order a straight column of boxes walked sideways
-    (serial PGS: 22-26 mm at 8-30 iterations, block mass splitting 29 mm at 8). Starting from
-    each point in turn (a box face's points run round it) cancels the turns over the substeps
-    (docs/method-notes.md, "A column's sway: the order inside a manifold"). Reversing the order on
-    alternate sweeps starts on the same side and toppled the friction arch. A value, not a field:
-    the CPU team's late members walk phases others have finished, and would race on a shared one."""
-    return substep % ti.max(count, 1)
-
-
-@ti.func
-def manifold_point(start: ti.i32, count: ti.i32, shift: ti.i32, i: ti.i32) -> ti.i32:
-    """The i-th point visited of the manifold whose points are ``start`` .. ``start + count - 1``,
-    beginning at ``shift`` (manifold_shift)."""
-    j = i + shift
-    if j >= count:
-        j -= count
-    return start + j
-
-
 SLIDING, ROLLING = 1, 2
 """Bits of a sweep's ``friction`` switch (effects.py compiles each in only when some contact can
 use it): the sliding-friction rows, and the torsional and rolling rows (``rolling.solve_rolling``)."""

@@ -131,7 +131,7 @@ class Schedule:
     def sweep(self, buf, awake, mode: int, friction: int, then_warm: int = 0, gravity=None, h: float = 0.0,
               substep: int = 0) -> None:
         """One pass over every contact row (``then_warm``: mass_splitting.sweep_blocks), in substep
-        ``substep`` of the step (rows.manifold_shift)."""
+        ``substep`` of the step (visit_order.visited_point)."""
         rows, c, bodies = buf.rows, buf.contacts, buf.bodies
         if self.info.visit == "serial":
             pgs.pgs_serial(rows, c, bodies, mode, friction, substep)

@@ -141,7 +141,8 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     loops parallel, in one launch. ``first``: this substep does its own gravity and warm start;
     ``then_warm``: its last relax sweep does the next one's (both 1 / 0 decided by
     ``Schedule.iterate`` with ``folds_warm_start``; a step with an impact row overrides them
-    here to 1 / 0, folds_this_step). ``substep``: its index in the step (rows.manifold_shift)."""
+    here to 1 / 0, folds_this_step). ``substep``: its index in the step
+    (visit_order.visited_point)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
@@ -253,9 +254,9 @@ def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
                   motion: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
                   schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3,
                   h: ti.f32, substep: ti.i32, fast_slot: ti.i32 = 0) -> ti.i32:
-    """One sweep of substep ``substep`` (rows.manifold_shift); ``pose_after``: the bodies' poses
-    advance right after it (the biased solve's last sweep), fused into the Jacobi family's gather.
-    ``fast_slot``: _block_phase."""
+    """One sweep of substep ``substep`` (visit_order.visited_point); ``pose_after``: the bodies'
+    poses advance right after it (the biased solve's last sweep), fused into the Jacobi family's
+    gather. ``fast_slot``: _block_phase."""
     if ti.static(schedule == PGS_COLORED):
         p = _color_phases(team, p, member, members, rows, c, bodies, col, mode, friction, substep)
         if pose_after:
