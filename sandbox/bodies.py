@@ -75,11 +75,26 @@ class Bodies:
         columns["pos_rem"] = (pos64 - pos64.astype(np.float32)) * (np.asarray(arrays["inv_mass"]) > 0)[:, None]
         write_rows([(getattr(self, name), 0, np.asarray(value, np.float64)) for name, value in columns.items()])
         self.count[None] = n
-        self.support.fill(0.0)  # a rebuilt world learns its loads again (a few steps)
+        self.support.fill(0.0)  # a new world learns its loads (a few steps); an edit carries them (edits.py)
         self.support_slow.fill(0.0)
         self.support_points.fill(0)
         update_world_inertia(self, EVERY)
         save_good_state(self, EVERY)
+
+    LOAD_FIELDS = ("support", "support_slow", "support_points")
+
+    def read_loads(self, n: int) -> dict[str, np.ndarray]:
+        """The first n bodies' support loads (contact_spring.py), to carry across a rebuild."""
+        return {name: getattr(self, name).to_numpy()[:n] for name in self.LOAD_FIELDS}
+
+    def write_loads(self, loads: dict[str, np.ndarray], body_map: np.ndarray) -> None:
+        """``read_loads``'s arrays again, old body i as body ``body_map[i]`` (-1: gone)."""
+        kept = body_map >= 0
+        for name, old in loads.items():
+            field = getattr(self, name)
+            full = field.to_numpy()
+            full[body_map[kept]] = old[kept]
+            field.from_numpy(full)
 
     def mark_placed(self, indices: np.ndarray) -> None:
         """Flag the bodies put in the world (by the scene, an edit or a fracture) that no

@@ -3,7 +3,8 @@ arrays built from it (build.py) and the device buffers they are uploaded into (b
 
 Edits (add, remove, fracture, set a velocity, apply an impulse) run between steps. Those that
 change the body list rebuild the host arrays and upload them: every other body keeps its
-state (read back from the device first), warm-start impulses are dropped once, and the
+state (read back from the device first), its contacts' warm-start impulses and its support
+loads (renumbered with the shapes and bodies; so does a move to larger buffers), and the
 buffers move to a larger capacity class only when the new list needs it (a class once
 compiled stays, so removing or fracturing never recompiles for a smaller one).
 
@@ -38,6 +39,7 @@ from .build import host_world, upload
 from .errors import CapacityError, SandboxError
 from .fracture import FractureError, check_arguments, fracture_body, piece_count
 from .host_counters import StepCounters
+from .persistence import read_history, write_history
 from .scene import quat_to_matrix
 from .scene.spec import EventSpec, Scene
 from .settings import Settings
@@ -138,15 +140,19 @@ class Edits:
         caps = b.caps.grown(grid_entries=max(b.caps.grid_entries, 2 * entries), pairs=max(b.caps.pairs, 2 * pairs))
         self.keep_overlaps()
         snap = self._sleep_snapshot()
+        carried = self._carried_contacts(n)
         self.close()
         self._acquire(caps)
-        self._sleep_restore(snap, np.arange(n), self.host.shape_arrays["body"])
+        same = np.arange(len(self.host.shape_arrays["body"]))
+        self._restore_contacts(carried, np.arange(n), same)
+        self._sleep_restore(snap, np.arange(n), same)
         return True
 
     def _rebuild(self, bodies: list, body_map: np.ndarray) -> None:
         """``body_map``: old body index -> new one (-1: gone), the static carrier included."""
         self.keep_overlaps()
         snap = self._sleep_snapshot()
+        carried = self._carried_contacts(len(body_map))
         old_shape_body = self.host.shape_arrays["body"]
         self.bodies = bodies
         self.host = host_world(dataclasses.replace(self.scene, bodies=bodies), self.settings)
@@ -162,8 +168,24 @@ class Edits:
         else:
             self.close()
             self._acquire(caps)
-        self._sleep_restore(snap, body_map, old_shape_body)
+        new_count = len(self.host.body_arrays["inv_mass"])
+        shape_map = sleep_rebuild.shape_map_for(old_shape_body, self.host.shape_arrays["body"], body_map, new_count)
+        self._restore_contacts(carried, body_map, shape_map)
+        self._sleep_restore(snap, body_map, shape_map)
         self._update_breakable()
+
+    def _carried_contacts(self, n_bodies: int) -> tuple[dict, dict]:
+        """What a rebuild carries for the bodies that stay: the stored impulses of their awake
+        contacts (the next step's warm start; the sleeping ones' wait in the sleep store) and
+        their support loads (their springs' stiffness and preload, contact_spring.py). Without
+        them a resting pile starts the step after an edit cold and soft, and falls for a substep
+        before its sweeps catch up (docs/method-notes.md, "Edits: what a rebuild carries")."""
+        return read_history(self.buf.history), self.buf.bodies.read_loads(n_bodies)
+
+    def _restore_contacts(self, carried: tuple[dict, dict], body_map: np.ndarray, shape_map: np.ndarray) -> None:
+        history, loads = carried
+        write_history(self.buf.history, sleep_rebuild.remap_owned(history, "point", shape_map))
+        self.buf.bodies.write_loads(loads, np.asarray(body_map, np.int64))
 
     # ------------------------------------------------------------------ sleeping
     def awake_set(self, sleeping: bool):
@@ -202,13 +224,11 @@ class Edits:
             return None
         return sleep_rebuild.snapshot(self.buf, len(self.host.body_arrays["inv_mass"]), self.host.shape_arrays["body"])
 
-    def _sleep_restore(self, snap, body_map: np.ndarray, old_shape_body: np.ndarray) -> None:
+    def _sleep_restore(self, snap, body_map: np.ndarray, shape_map: np.ndarray) -> None:
         if snap is None:
             if self.keeps_awake_lists:  # sleeping off: the lists again, of every body
                 sleep.start(self.buf, self.settings.contact_margin, resting=False)
             return
-        new_count = len(self.host.body_arrays["inv_mass"])
-        shape_map = sleep_rebuild.shape_map_for(old_shape_body, self.host.shape_arrays["body"], body_map, new_count)
         sleep_rebuild.restore(self.buf, snap, np.asarray(body_map, np.int64), shape_map, self.settings.contact_margin)
 
     # ------------------------------------------------------------------ queries

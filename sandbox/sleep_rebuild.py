@@ -70,19 +70,24 @@ def restore(buf, snap: SleepSnapshot, body_map: np.ndarray, shape_map: np.ndarra
 
 
 def _remap_records(records: dict, shape_map: np.ndarray) -> dict:
-    """Owners and partners to the new shape ids, dropping records of shapes that are gone, then
-    sorted by owner (stable, so each shape keeps its records' order)."""
-    out = {}
-    for kind, partner_key in (("point", "point_partner"), ("pair", "pair_partner")):
-        owner = shape_map[records[kind + "_owner"].astype(np.int64)]
-        partner = records[partner_key].astype(np.int64)
-        moved = np.where(partner >= 0, shape_map[np.clip(partner, 0, None)], partner)  # planes: -1 - index
-        keep = (owner >= 0) & ((partner < 0) | (moved >= 0))
-        order = np.argsort(owner[keep], kind="stable")
-        for key in _record_keys(records, kind):
-            out[key] = records[key][keep][order]
-        out[kind + "_owner"] = owner[keep][order]
-        out[partner_key] = moved[keep][order].astype(np.int32)
+    out = remap_owned(records, "point", shape_map)
+    out.update(remap_owned(records, "pair", shape_map))
+    return out
+
+
+def remap_owned(records: dict, kind: str, shape_map: np.ndarray) -> dict:
+    """One kind of record ("point": history, "pair": manifolds) with its owners and partners
+    at the new shape ids, dropping records of shapes that are gone, then sorted by owner
+    (stable, so each shape keeps its records' order)."""
+    partner_key = kind + "_partner"
+    owner = shape_map[records[kind + "_owner"].astype(np.int64)]
+    partner = records[partner_key].astype(np.int64)
+    moved = np.where(partner >= 0, shape_map[np.clip(partner, 0, None)], partner)  # planes: -1 - index
+    keep = (owner >= 0) & ((partner < 0) | (moved >= 0))
+    order = np.argsort(owner[keep], kind="stable")
+    out = {key: records[key][keep][order] for key in _record_keys(records, kind)}
+    out[kind + "_owner"] = owner[keep][order]
+    out[partner_key] = moved[keep][order].astype(np.int32)
     return out
 
 

@@ -23,12 +23,13 @@ import taichi as ti
 
 from .backend import serialize_light_loops
 from .narrowphase.manifold import MAX_POINTS
+from .persistence import HISTORY_FIELDS, owned_rows
 from .prefix_sum import Scanner, exclusive_scan
 
 FALLING, WAKING = 1, 2
 """A body's ``change`` in the sleep event under way (sleep.py): it falls asleep, or wakes."""
 
-POINT_FIELDS = ("partner", "feature", "anchor", "lam_n", "lam_t")
+POINT_FIELDS = HISTORY_FIELDS
 """A history record (persistence.ContactHistory), per contact point."""
 PAIR_FIELDS = ("partner", "count", "gap", "rel_pos", "rel_rot", "normal", "normal_on_b", "overlap")
 SLOT_FIELDS = ("on_a", "on_b", "feature")
@@ -82,8 +83,8 @@ class SleepStore:
         h = int(self.parity[None])
         pf, pl = self.point_first.to_numpy()[h], self.point_last.to_numpy()[h]
         mf, ml = self.pair_first.to_numpy()[h], self.pair_last.to_numpy()[h]
-        point_rows = _ranges(pf, pl)
-        pair_rows = _ranges(mf, ml)
+        point_rows = owned_rows(pf, pl)
+        pair_rows = owned_rows(mf, ml)
         out = {"point_owner": point_rows[1], "pair_owner": pair_rows[1]}
         for name in POINT_FIELDS:
             out["point_" + name] = getattr(self, name).to_numpy()[h][point_rows[0]]
@@ -120,15 +121,6 @@ class SleepStore:
             values = records["slot_" + name][:pairs]
             _write_half(getattr(self, "m_" + name), values.reshape((pairs * MAX_POINTS,) + values.shape[2:]))
         self.parity[None] = 0
-
-
-def _ranges(first: np.ndarray, last: np.ndarray):
-    """(record rows, owner of each row) of per-shape ranges [first, last)."""
-    sizes = np.maximum(last - first, 0)
-    owner = np.repeat(np.arange(len(first)), sizes)
-    starts = np.repeat(first, sizes)
-    offsets = np.arange(len(owner)) - np.repeat(np.cumsum(sizes) - sizes, sizes)
-    return (starts + offsets).astype(np.int64), owner.astype(np.int64)
 
 
 def _write_half(field, values: np.ndarray) -> None:

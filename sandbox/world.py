@@ -213,8 +213,9 @@ class World:
         self.applied_events.append((self.step_count, event))
 
     def add_bodies(self, bodies: list) -> list[int]:
-        """Append bodies (BodySpecs) to the world; returns their indices. Body state is kept;
-        warm-start impulses are dropped once (the contact buffer is rebuilt). They go before the
+        """Append bodies (BodySpecs) to the world; returns their indices. The other bodies keep
+        their state, their contacts' warm-start impulses and their support loads across the
+        rebuild of the buffers (edits.py), so a resting pile does not notice. They go before the
         pieces of impact fractures, if there are any (edits.py)."""
         self._flush_breaks()
         return self._edits.add(bodies)
