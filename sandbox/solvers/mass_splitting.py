@@ -64,7 +64,7 @@ from .impact_carry import clamp_impact_carry
 from .rolling import rolling_impulse
 from .rows import BIASED, ROLLING, point_impulse, pushes_fast, solve_point
 from .split_scales import block_weights
-from .visit_order import visited_point
+from .visit_order import gauss_seidel_block
 
 vec3 = ti.math.vec3
 
@@ -378,11 +378,11 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
     va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
     vb0, wb0 = bodies.lin_vel[b], bodies.ang_vel[b]
     va, wa, vb, wb = va0, wa0, vb0, wb0
-    for i in range(count):
-        q = start + i  # a per-point block has one point
-        if ti.static(kind != PER_POINT):
-            q = visited_point(start, count, substep, i)
-        va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
+    if ti.static(kind == PER_POINT):
+        for i in range(count):  # a per-point block has one point
+            va, wa, vb, wb = solve_point(rows, c, bodies, start + i, va, wa, vb, wb, mode, friction)
+    else:
+        va, wa, vb, wb = gauss_seidel_block(rows, c, bodies, start, count, substep, va, wa, vb, wb, mode, friction)
     fast = 0
     if ti.static(mode == BIASED):
         if rows.params[RELAX_PUSH] > 0.0:  # off: one read per block

@@ -18,8 +18,7 @@ overflow colour solved serially (as Box2D does).
 import numpy as np
 import taichi as ti
 
-from .rows import solve_point
-from .visit_order import visited_point
+from .visit_order import gauss_seidel_block
 
 MAX_COLORS = 64
 
@@ -28,15 +27,14 @@ MAX_COLORS = 64
 def solve_manifold(rows: ti.template(), c: ti.template(), bodies: ti.template(), m: ti.i32, mode: ti.template(),
                    friction: ti.template(), substep: ti.i32):
     """Manifold m's points one after another on its bodies' velocities, starting where the
-    ``substep``-th substep of the step starts (visit_order.visited_point)."""
+    ``substep``-th substep of the step starts, an impact's until they settle
+    (visit_order.gauss_seidel_block)."""
     a = c.m_body_a[m]
     b = c.m_body_b[m]
     va, wa = bodies.lin_vel[a], bodies.ang_vel[a]
     vb, wb = bodies.lin_vel[b], bodies.ang_vel[b]
     start, count = c.m_start[m], c.m_count[m]
-    for i in range(count):
-        q = visited_point(start, count, substep, i)
-        va, wa, vb, wb = solve_point(rows, c, bodies, q, va, wa, vb, wb, mode, friction)
+    va, wa, vb, wb = gauss_seidel_block(rows, c, bodies, start, count, substep, va, wa, vb, wb, mode, friction)
     if bodies.inv_mass[a] > 0.0:
         bodies.lin_vel[a] = va
         bodies.ang_vel[a] = wa
