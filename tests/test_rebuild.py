@@ -2,8 +2,8 @@
 that stay: their contacts' warm-start impulses (persistence.read_history / write_history, the
 shapes renumbered) and their support loads (the springs' stiffness and preload).
 
-Before they were carried, adding a box 30 m from a resting 10-box column, or removing one (which
-renumbers every body after it), left the column 3.9 mm from where it would have been 30 steps
+Before they were carried, adding a box 30 m from a resting 10-box column (or 300 of them, which
+moves the world to larger buffers), or removing one (which renumbers every body after it), left the column 3.9 mm from where it would have been 30 steps
 later (it started the next step cold and soft, and fell for a substep); carried, it is within
 1-13 um of that (the manifolds are found again, not reused, so not to the bit).
 """
@@ -38,8 +38,17 @@ def _column_after(solver: str, edit: str) -> tuple[np.ndarray, dict, dict]:
     world = _column_world(solver)
     column = slice(1, 11)
     loads_before = world._edits.buf.bodies.read_loads(11)
+    caps = world._edits.buf.caps
     if edit == "add":
         world.add_bodies([copy.deepcopy(world._edits.bodies[0])])
+    elif edit == "grow":  # enough bodies for a larger buffer class: new buffers, not an upload
+        far = []
+        for k in range(300):
+            box = copy.deepcopy(world._edits.bodies[0])
+            box.position = np.array([30.0 + 2.0 * (k % 20), 2.0 * (k // 20), 0.5])
+            far.append(box)
+        world.add_bodies(far)
+        assert world._edits.buf.caps != caps, "300 more boxes should move the world to larger buffers"
     elif edit == "remove":
         world.remove_bodies([0])
         column = slice(0, 10)
@@ -51,7 +60,7 @@ def _column_after(solver: str, edit: str) -> tuple[np.ndarray, dict, dict]:
 @pytest.mark.parametrize("solver", ["pgs", "mass-splitting"])
 def test_an_edit_elsewhere_leaves_a_resting_column_where_it_was(solver):
     unedited, _, _ = _column_after(solver, "none")
-    for edit in ("add", "remove"):
+    for edit in ("add", "grow", "remove"):
         edited, before, after = _column_after(solver, edit)
         for name in before:
             np.testing.assert_array_equal(after[name], before[name], err_msg=f"{edit}: {name} not carried")
