@@ -12,8 +12,8 @@ does not kick resting stacks. No atomics: the result is deterministic.
 An edit that rebuilds the world's buffers (edits.py) carries the history over on the host
 (``read_history`` / ``write_history``, its shapes renumbered by sleep_rebuild.remap_owned): a
 resting pile that starts a step with no impulses falls for a substep before its sweeps catch
-up, so dropping one body 50 m from a resting pyramid used to throw the pyramid (mass
-splitting, 15 iterations: a peak of 2.3e3 J).
+up: adding one box 50 m from a resting pyramid_20 used to send its boxes to 0.29 m/s and dip
+its top 12.8 mm (mass splitting, 15 iterations; docs/method-notes.md).
 """
 
 
