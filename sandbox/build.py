@@ -16,6 +16,7 @@ import numpy as np
 
 from .broadphase import compute_all_aabbs
 from .buffers import BufferSet, Capacities
+from .contacts import clear_contacts
 from .manifold_cache import clear_cache
 from .persistence import clear_history
 from .scene.spec import Scene
@@ -224,6 +225,7 @@ def upload(host: HostWorld, buffers: BufferSet, margin: float) -> None:
     buffers.bp.upload_static_grid(grid)
     buffers.bp.cell_size[None] = host.cell_size
     compute_all_aabbs(buffers.bp, buffers.shapes, buffers.bodies, margin)
+    clear_contacts(buffers.contacts, buffers.bp)
     clear_history(buffers.history)
     clear_cache(buffers.manifold_cache)
     buffers.errors.clear()  # a pooled buffer may carry the flags of its previous world

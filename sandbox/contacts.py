@@ -252,3 +252,14 @@ def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bo
                   awake: ti.template(), dispatch: ti.template()):
     collide_pairs_loops(c, bp, shapes, bodies, pool, cache, margin, slop, overlap_depth, h, speculative, reuse_d2,
                         reuse_sin, kinds, awake, dispatch)
+
+
+@ti.kernel
+def clear_contacts(c: ti.template(), bp: ti.template()):
+    """No contact and no pair yet: a world uploaded into a pooled buffer (build.upload) would
+    otherwise show, until its first collision, the contacts its buffer's previous world left,
+    with that world's body indices (``World.metrics()`` before the first step hung labelling
+    islands over them)."""
+    c.count[None] = 0
+    c.manifold_count[None] = 0
+    bp.pair_total[None] = 0

@@ -45,6 +45,7 @@ class Run:
     start: dict = field(default_factory=dict)  # state() before the first step
     settled: dict = field(default_factory=dict)  # state() after SETTLE_STEPS (method.md M7: drift from T_settle)
     final: dict = field(default_factory=dict)  # state() after the last step
+    energy_gain: float = -np.inf  # [J] the most kinetic plus potential energy rose above its start
 
 
 @dataclass
@@ -58,8 +59,10 @@ class Case:
 
 
 FLYING_SPEED = 10.0
-"""[m/s] A body of a resting case that reaches this speed is flying: no settling, sagging or
-slow collapse gets a 1 m box there (it would have to fall 5 m), only energy the solver made."""
+"""[m/s] A body of a resting case that reaches this speed is flying: no settling or sagging gets
+a 1 m box there, only energy the solver made or a fall of 5 m or more (a 20-box column or the
+arch collapsing). ``CaseResult.energy_gain`` tells the two apart: a collapse never takes the
+world's kinetic plus potential energy above its start."""
 
 
 @dataclass
@@ -67,6 +70,7 @@ class CaseResult:
     passed: bool
     figures: str  # the measured figures the criterion read, in words
     peak_speed: float  # [m/s] the fastest any body moved, over the run
+    energy_gain: float = float("nan")  # [J] the most kinetic plus potential energy rose above its start
 
     @property
     def flying(self) -> bool:
@@ -221,6 +225,8 @@ def run_case(case: Case, solver: str, iterations: int, steps: int | None = None,
     scene = Scene.load(case.scene) if isinstance(case.scene, Path) else Scene.from_dict(case.scene, source=case.name)
     world = World(scene, solver=solver, iterations=iterations, arch=arch)
     run = Run(start=world.state())
+    weights = -np.outer([0.0 if b.static else b.mass for b in world.body_specs], world.gravity)  # [N]
+    energy0 = world.metrics()["kinetic_energy"] + float(np.sum(weights * run.start["position"]))
     try:
         for k in range(steps or case.steps):
             if k == SETTLE_STEPS:
@@ -228,6 +234,8 @@ def run_case(case: Case, solver: str, iterations: int, steps: int | None = None,
             world.step(1)
             m = world.metrics()
             st = world.state()
+            energy = m["kinetic_energy"] + float(np.sum(weights * st["position"]))
+            run.energy_gain = max(run.energy_gain, energy - energy0)
             run.ke.append(m["kinetic_energy"])
             run.max_penetration.append(m["max_penetration"])
             run.max_speed.append(float(np.linalg.norm(st["linear_velocity"], axis=1).max()))
@@ -235,8 +243,8 @@ def run_case(case: Case, solver: str, iterations: int, steps: int | None = None,
             run.peak_sideways = sideways if run.peak_sideways is None else np.maximum(run.peak_sideways, sideways)
         run.final = world.state()
     except SimulationError as exc:
-        return CaseResult(False, f"stopped: {exc}", max(run.max_speed, default=float("inf")))
+        return CaseResult(False, f"stopped: {exc}", max(run.max_speed, default=float("inf")), run.energy_gain)
     finally:
         world.close()  # a stopped run gives its buffers back too
     passed, figures = case.judge(run)
-    return CaseResult(passed, figures, max(run.max_speed, default=0.0))
+    return CaseResult(passed, figures, max(run.max_speed, default=0.0), run.energy_gain)

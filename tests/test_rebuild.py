@@ -66,3 +66,18 @@ def test_an_edit_elsewhere_leaves_a_resting_column_where_it_was(solver):
             np.testing.assert_array_equal(after[name], before[name], err_msg=f"{edit}: {name} not carried")
         moved = float(np.abs(edited - unedited).max())
         assert moved < UNDISTURBED, f"{solver}, {edit}: the column ended {1e3 * moved:.3f} mm from its unedited run"
+
+
+def test_a_world_in_a_pooled_buffer_starts_with_no_contacts():
+    """Closed worlds give their buffers back to a pool (buffers.py), and the next world of the same
+    size takes them: before its first step it showed the previous world's contacts, with that
+    world's body indices, and ``metrics()`` hung labelling islands over them."""
+    stack = World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5 + i]) for i in range(3)])), arch=TEST_ARCH)
+    stack.step(30)
+    assert stack.metrics()["contacts"] > 0
+    pooled = stack.buf
+    stack.close()
+    falling = World(Scene.from_dict(scene_dict([box_body([5.0, 0.0, 3.0])])), arch=TEST_ARCH)
+    assert falling.buf is pooled, "the second world should take the first one's buffers"
+    assert len(falling.contacts()["normal"]) == 0
+    assert falling.metrics()["contacts"] == 0
