@@ -22,6 +22,7 @@ import taichi as ti
 
 from .awake import shape_id, shape_total
 from .backend import serialize_light_loops
+from .field_upload import write_rows
 
 vec3 = ti.math.vec3
 
@@ -153,11 +154,7 @@ def write_history(hist: ContactHistory, records: dict) -> None:
     owner = records["point_owner"]
     n = len(owner) if len(owner) <= hist.capacity else 0
     shapes = np.arange(hist.shape_first.shape[0])
-    hist.shape_first.from_numpy(np.searchsorted(owner[:n], shapes, side="left").astype(np.int32))
-    hist.shape_last.from_numpy(np.searchsorted(owner[:n], shapes, side="right").astype(np.int32))
-    for name in HISTORY_FIELDS:
-        field = getattr(hist, name)
-        full = field.to_numpy()
-        full[:n] = records["point_" + name][:n]
-        field.from_numpy(full)
+    write_rows([(hist.shape_first, 0, np.searchsorted(owner[:n], shapes, side="left")),
+                (hist.shape_last, 0, np.searchsorted(owner[:n], shapes, side="right"))]
+               + [(getattr(hist, name), 0, records["point_" + name][:n]) for name in HISTORY_FIELDS])
     hist.count[None] = n
