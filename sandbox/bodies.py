@@ -15,7 +15,9 @@
   it to full precision;
 * derived per step: world inverse inertia, read by the solver's inner loop;
 * last good state: a device-side copy taken at the start of every step, restored
-  when a step produces non-finite numbers (the world keeps its last good state).
+  when a step produces non-finite numbers (the world keeps its last good state); it holds
+  the support loads too, which the step's end updates from its impulses (a diverged step's
+  would stiffen the next step's springs by loads no good state had).
 
 Static bodies have inverse mass and inverse inertia zero and are never moved.
 """
@@ -56,6 +58,9 @@ class Bodies:
         self.support = ti.field(ti.f32, c)  # [N] averaged force holding the body up (contact_spring.py)
         self.support_slow = ti.field(ti.f32, c)  # [N] the same, followed more slowly, for the preload (contact_preload_lag)
         self.support_points = ti.field(ti.i32, c)  # contact points holding it up, last step
+        self.good_support = ti.field(ti.f32, c)
+        self.good_support_slow = ti.field(ti.f32, c)
+        self.good_support_points = ti.field(ti.i32, c)
         self.damping = ti.Vector.field(2, ti.f32, c)  # [1/s] linear, angular (scene.spec.RESISTANCE_KEYS)
         self.rolling = ti.Vector.field(2, ti.f32, c)  # [m] rolling, torsional friction lever arms
         self.placed = ti.field(ti.i32, c)  # 1: put in the world since the last narrowphase (mark_placed)
@@ -91,10 +96,10 @@ class Bodies:
         """``read_loads``'s arrays again, old body i as body ``body_map[i]`` (-1: gone)."""
         kept = body_map >= 0
         for name, old in loads.items():
-            field = getattr(self, name)
-            full = field.to_numpy()
-            full[body_map[kept]] = old[kept]
-            field.from_numpy(full)
+            for field in (getattr(self, name), getattr(self, "good_" + name)):  # and the good state's copy
+                full = field.to_numpy()
+                full[body_map[kept]] = old[kept]
+                field.from_numpy(full)
 
     def mark_placed(self, indices: np.ndarray) -> None:
         """Flag the bodies put in the world (by the scene, an edit or a fracture) that no
@@ -155,6 +160,9 @@ def save_body_state(b: ti.template(), i: ti.i32):
     b.good_rot[i] = b.rot[i]
     b.good_lin_vel[i] = b.lin_vel[i]
     b.good_ang_vel[i] = b.ang_vel[i]
+    b.good_support[i] = b.support[i]
+    b.good_support_slow[i] = b.support_slow[i]
+    b.good_support_points[i] = b.support_points[i]
 
 
 @ti.func
@@ -180,3 +188,6 @@ def restore_good_state(b: ti.template()):
         b.rot[i] = b.good_rot[i]
         b.lin_vel[i] = b.good_lin_vel[i]
         b.ang_vel[i] = b.good_ang_vel[i]
+        b.support[i] = b.good_support[i]
+        b.support_slow[i] = b.good_support_slow[i]
+        b.support_points[i] = b.good_support_points[i]

@@ -57,3 +57,20 @@ def test_colored_pgs_with_restitution_steps_on_the_cpu():
     world.step(60)
     z = world.state()["position"][0, 2]
     assert np.isfinite(z) and 0.45 < z < 1.6
+
+
+def test_a_failed_step_keeps_the_support_loads_of_the_last_good_state():
+    """The support loads (solvers/contact_spring.py) are state too: the step's end updates them from
+    its impulses, so a diverged step must not leave its loads behind for the next one's springs."""
+    tall = (0.2, 0.2, 1.0)
+    scene = Scene.from_dict(scene_dict([box_body([0, 0, 1.0], half=tall), box_body([0, 0, 3.0], half=tall)]))
+    world = World(scene, solver="mass-splitting", iterations=10, arch=TEST_ARCH)
+    world.step(30)
+    bodies = world.buf.bodies
+    loads = bodies.read_loads(2)
+    assert loads["support"].min() > 0.0  # the column has learnt its loads
+    world.set_solver("jacobi", iterations=1, relaxation=1.0)
+    world.settings = Settings(warm_start=0.0, sweeps=400)  # diverges within the step (the test above)
+    _failing_step_keeps_state(world)
+    for name, before in loads.items():
+        np.testing.assert_array_equal(before, bodies.read_loads(2)[name], err_msg=name)
