@@ -56,7 +56,8 @@ def test_bad_body_references_are_refused(world, indices, match):
 @pytest.mark.parametrize("call", [lambda w: w.step(-1), lambda w: w.step(1.5), lambda w: w.set_solver("nope"),
                                   lambda w: w.set_solver("pgs", iterations=0),
                                   lambda w: w.set_solver("jacobi", relaxation=3.0),
-                                  lambda w: w.set_solver("pgs", shuffle=True)])
+                                  lambda w: w.set_solver("pgs", shuffle=True),
+                                  lambda w: w.set_solver("pgs-colored", seed=2**40)])
 def test_bad_solver_and_step_arguments_are_refused(world, call):
     with pytest.raises(SandboxError):
         call(world)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from . import timeline
 from .spec import RESISTANCE_KEYS
-from ..solvers import SOLVERS  # the registry itself (Taichi-free), so names and options cannot drift
+from ..solvers import MAX_SEED, SOLVERS  # MAX_SEED: CoACD's and the colouring's seeds alike; the registry itself (Taichi-free), so names and options cannot drift
 
 SOLVER_NAMES = tuple(SOLVERS)
 SOLVER_OPTIONS = {name: tuple(info.defaults) for name, info in SOLVERS.items()}
@@ -56,7 +56,6 @@ SHAPE_REQUIRED = {"box": ("half_extents",), "sphere": ("radius",), "capsule": ("
 BODY_KEYS = ("shape", "position", "orientation", "linear_velocity", "angular_velocity", "density", "mass",
              "friction", "restitution", "name", "static", "breakable", "strength", "pieces") + RESISTANCE_KEYS
 DECOMPOSITION_KEYS = ("threshold", "max_hulls", "seed", "max_hull_vertices", "timeout", "on_failure")
-MAX_SEED = 2**31 - 1
 STATIC_SOLID_KEYS = ("shape", "position", "orientation", "friction", "restitution", "name", "rolling_friction",
                      "torsional_friction")
 PART_KEYS = ("shape", "position", "orientation", "density")

@@ -85,6 +85,9 @@ def load_scene(path) -> Scene:
         where = re.search(r"at line (\d+), column (\d+)", msg)
         entry = f"line {where.group(1)}, column {where.group(2)}" if where else None
         problem = re.sub(r"\s*\(at line \d+, column \d+\)", "", msg) if where else msg
+        if where is None and "end of document" in msg:
+            entry = f"end of file (line {max(1, len(text.splitlines()))})"
+            problem = re.sub(r"\s*\(at end of document\)", "", msg)
         raise SceneError(f"TOML syntax error: {problem}", source=source, entry=entry) from None
     return scene_from_dict(data, source=source, base_dir=file.parent)
 

@@ -18,13 +18,15 @@ from .spec import MeshSpec, PlaneSpec, ShapeSpec
 
 
 def load_mesh_file(r: Reader, key: str, process: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices, faces) of a mesh file read with trimesh (force='mesh'), cached per load."""
+    """(vertices, faces) of a mesh file read with trimesh (force='mesh'), cached per load; with
+    ``process``, vertices merged and degenerate triangles dropped, after the checks: trimesh's
+    own processing would drop NaN vertices and their triangles without a word."""
     path = r.file(key)
     cached = r.ctx.cache.get((path.resolve(), process))
     if cached is not None:
         return cached
     try:
-        vertices, faces = meshes.read_mesh_file(path, process=process)
+        vertices, faces = meshes.read_mesh_file(path, process=False)
     except meshes.MeshError as exc:
         raise r.error(str(exc), key) from None
     if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0 or vertices.ndim != 2 or vertices.shape[1] != 3:
@@ -33,6 +35,12 @@ def load_mesh_file(r: Reader, key: str, process: bool = True) -> tuple[np.ndarra
         raise r.error(f"mesh file {path} has NaN or inf vertex coordinates", key)
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise r.error(f"mesh file {path} has triangle indices out of range", key)
+    if process:
+        import trimesh
+
+        processed = trimesh.Trimesh(vertices, faces, process=True)
+        vertices = np.asarray(processed.vertices, dtype=np.float64)
+        faces = np.asarray(processed.faces, dtype=np.int64)
     r.ctx.cache[(path.resolve(), process)] = (vertices, faces)
     return vertices, faces
 

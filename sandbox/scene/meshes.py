@@ -139,6 +139,8 @@ def read_mesh_file(path: Path, *, process: bool = True) -> tuple[np.ndarray, np.
         mesh = trimesh.load(str(path), force="mesh", process=process)
         vertices = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
         faces = np.asarray(getattr(mesh, "faces", np.empty((0, 3))), dtype=np.int64)
+    except IndexError as exc:  # trimesh's readers index the vertex array with the file's triangles
+        raise MeshError(f"mesh file {path} has triangle indices out of range ({exc})") from None
     except Exception as exc:  # noqa: BLE001 -- any failure inside trimesh's readers is a bad file
         detail = str(exc).strip().splitlines()[0] if str(exc).strip() else ""
         raise MeshError(f"cannot read mesh file {path}: {type(exc).__name__}{': ' + detail if detail else ''}") from None

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..settings import FORMULATIONS
-from .keys import MAX_ITERATIONS, SOLVER_KEYS, SOLVER_NAMES, SOLVER_OPTION_KEYS, SOLVER_OPTIONS, WORLD_KEYS
+from .keys import MAX_ITERATIONS, MAX_SEED, SOLVER_KEYS, SOLVER_NAMES, SOLVER_OPTION_KEYS, SOLVER_OPTIONS, WORLD_KEYS
 from .schema import Reader
 from .spec import SolverSpec, WorldSpec
 
@@ -49,7 +49,7 @@ def _read_solver_options(r: Reader, name: str) -> dict:
     if r.has("relaxation"):
         options["relaxation"] = r.real("relaxation", low=0.0, high=2.0, open_low=True, open_high=True)
     if r.has("seed"):
-        options["seed"] = r.integer("seed", minimum=0)
+        options["seed"] = r.integer("seed", minimum=0, maximum=MAX_SEED)
     return options
 
 

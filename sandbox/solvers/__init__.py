@@ -23,6 +23,9 @@ from dataclasses import dataclass, field
 from ..errors import SandboxError
 from ..settings import ITERATION_LAUNCHES
 
+MAX_SEED = 2**31 - 1
+"""The largest seed a kernel's 32-bit argument holds (the colouring's; CoACD's too)."""
+
 VISITS = ("serial", "colored", "blocks")
 """How a sweep visits the blocks: one after another in buffer order, the colours of a
 greedy graph colouring in sequence (each colour in parallel), or all blocks at once from
@@ -139,6 +142,7 @@ def check_solver(name: str, iterations: int, options: dict) -> dict:
             raise SandboxError(f"{name} relaxation must be in (0, 2), got {r!r}")
     if "shuffle" in merged and not isinstance(merged["shuffle"], bool):
         raise SandboxError(f"{name} option shuffle must be true or false, got {merged['shuffle']!r}")
-    if "seed" in merged and (isinstance(merged["seed"], bool) or not isinstance(merged["seed"], int)):
-        raise SandboxError(f"{name} option seed must be an integer, got {merged['seed']!r}")
+    if "seed" in merged and (isinstance(merged["seed"], bool) or not isinstance(merged["seed"], int)
+                             or not 0 <= merged["seed"] <= MAX_SEED):
+        raise SandboxError(f"{name} option seed must be an integer in [0, {MAX_SEED}], got {merged['seed']!r}")
     return merged
