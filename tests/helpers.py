@@ -8,7 +8,10 @@ where its scene comes from.
 
 from __future__ import annotations
 
+import gzip
+import json
 import os
+from pathlib import Path
 
 import numpy as np
 
@@ -21,6 +24,20 @@ G = 9.81
 """[m/s^2] the magnitude of ``scene_dict``'s default gravity."""
 DT = 1.0 / 60.0
 """[s] ``scene_dict``'s default step."""
+
+
+ANCHOR_SCENES = Path(__file__).resolve().parent / "data" / "anchor_scenes.json.gz"
+"""The anchors' scenes (../shared/anchors/scenes.json: numpy default_rng, seed 20120801), cut to the
+scenes and fields tests/scene compares with: stack20, pyramid20, pile1000 and
+massratio1000_heavy_on_light whole, heightfield_pile's body positions and terrain vertices and
+faces. Kept in the repository so the comparisons run wherever the suite does, CI's clean clone
+included, instead of skipping where the shared folder is absent."""
+
+
+def anchor_scene(name: str) -> dict:
+    """One scene of ``ANCHOR_SCENES``."""
+    with gzip.open(ANCHOR_SCENES, "rt") as f:
+        return json.load(f)["scenes"][name]
 
 
 def box_body(position, half=(0.5, 0.5, 0.5), mass=None, density=1000.0, **extra) -> dict:

@@ -18,8 +18,7 @@ iteration count and solver options (pgs-colored: its defaults):
 
 A case whose world cannot be built, or whose world fails a step (a SandboxError either way: the
 solver cannot run the scene, or diverges), stores the error's text instead of a hash; the text
-is checked like a hash (a solver that diverges elsewhere has changed too). mixed_on_terrain at its
-10 iterations diverges with jacobi and both mass splittings (step 40-41).
+is checked like a hash (a solver that diverges elsewhere has changed too); none does today.
 Regenerate the current platform's hashes (other platforms' entries are kept) with
 
     PYTHONPATH=$PWD python -m tests.state_hashes [quick|full] [CASE_ID ...]

@@ -60,9 +60,12 @@ def counted(*args):
     launches[0] += 1
     return one_substep(*args)
 substep.substep_parallel = counted  # the GPU's iteration launch, looked up at each call
+from sandbox import Scene
 for cid in sys.argv[1:]:
+    before = launches[0]
     print(cid, sh.run_case(cases[cid]), flush=True)
-print("substep_parallel launches", launches[0])
+    iterations = Scene.load(cases[cid].path).solver.iterations
+    print("launches", cid, launches[0] - before, cases[cid].steps * iterations, flush=True)
 """
 
 
@@ -81,10 +84,13 @@ def test_cuda_loop_shapes_on_the_cpu_give_the_stored_bits():
     for cid in CUDA_SHAPE_CASES:
         assert sh.is_hash(stored.get(cid, "")), f"{cid}: no stored hash to compare with"
         assert results.get(cid) == stored[cid], f"{cid} under SANDBOX_LOOPS=cuda: {results.get(cid)}"
-    # the shapes were taken: the split schedules' worlds (60 steps each) launch once per substep,
-    # where a CPU world of their size runs its whole iteration loop in one launch
-    launches = int(run.stdout.rsplit("substep_parallel launches", 1)[1])
-    assert launches >= 3 * 60, launches
+    # the shapes were taken: the split schedules' worlds launch once per substep (steps x
+    # iterations), where a CPU world of their size runs its whole iteration loop in one launch
+    counts = {cid: (int(n), int(substeps)) for _, cid, n, substeps in
+              (line.split() for line in run.stdout.splitlines() if line.startswith("launches "))}
+    for cid in ("stack_20-mass-splitting-60", "stack_20-block-mass-splitting-60"):
+        launched, substeps = counts[cid]
+        assert launched == substeps, f"{cid}: {launched} substep launches for {substeps} substeps"
 
 
 def test_an_unknown_loop_shape_is_refused(monkeypatch):

@@ -13,15 +13,13 @@ import math
 import numpy as np
 import pytest
 
-pytest.importorskip("coacd")
-
-from sandbox.errors import CapacityError, SandboxError  # noqa: E402
-from sandbox.fracture import FractureError, fracture_body  # noqa: E402
-from sandbox.polytope import penetration_depth  # noqa: E402
-from sandbox.scene import EventSpec, load_scene, scene_from_dict  # noqa: E402
-from sandbox.scene.rotations import quat_to_matrix  # noqa: E402
-from sandbox.settings import Settings  # noqa: E402
-from tests.helpers import TEST_ARCH  # noqa: E402
+from sandbox.errors import CapacityError, SandboxError
+from sandbox.fracture import FractureError, fracture_body
+from sandbox.polytope import penetration_depth
+from sandbox.scene import EventSpec, load_scene, scene_from_dict
+from sandbox.scene.rotations import quat_to_matrix
+from sandbox.settings import Settings
+from tests.helpers import TEST_ARCH
 
 HOST_RTOL = 1e-9
 """[1] Momentum and mass after a fracture in float64: exact up to the rounding of a few hundred

@@ -26,7 +26,8 @@ KNOWN_FAILURES = {
     ("stack_3_of_0.001m", "block-mass-splitting@15"): "the top 1 mm cube drifts 0.1 mm at 15 iterations "
                                                       "(criterion 0.02 mm)",
     ("deep_overlap_30pct", "mass-splitting@4"): "22 mm still overlapping after 3 s at 4 iterations",
-    ("friction_arch", "jacobi@4"): "the arch collapses at 4 iterations",
+    ("friction_arch", "jacobi@4"): "the arch collapses at 4 iterations (a voussoir 8.5 m from its place, peak "
+                                  "13.1 m/s)",
     ("friction_arch", "mass-splitting@4"): "the arch collapses at 4 iterations (a voussoir flies at 12.9 m/s)",
     ("friction_arch", "block-mass-splitting@4"): "a voussoir slips 25 mm at 4 iterations",
     # projected Jacobi takes its busiest body's split as its one global factor since 2026-11-26
@@ -49,11 +50,11 @@ KNOWN_FAILURES = {
     ("nudged_stack_20", "*@4"): "a 1 mm/s nudge of the top box topples the column at 4 iterations with every solver "
                                 "(top 0.4-13 m)",
     ("stack_20", "block-mass-splitting@4"): "the column topples at 4 iterations (peak 16 m/s)",
-    ("stack_20", "pgs-colored@4"): "the column topples at 4 iterations",
+    ("stack_20", "pgs-colored@4"): "the column sways out of line at 4 iterations (top drift 33.6 mm, criterion 10 mm)",
     # serial PGS's sway grows at 2 and 4 iterations until the column falls (tests/test_solver_robustness.py);
     # at 8-30 it stands since a Gauss-Seidel pass starts each manifold at its next point every substep
     # (visit_order.visited_point; it swayed 22-26 mm there with one fixed order)
-    ("stack_20", "pgs@4"): "the column topples at 4 iterations with serial PGS",
+    ("stack_20", "pgs@4"): "the column leans over at 4 iterations with serial PGS (top drift 441.5 mm in 10 s)",
     # the price of that order, 2026-11-26: the card house's top pair, whose feet slide 6-10 mm in the first
     # second at 4 iterations with either order, keeps sliding when the order turns (docs/method-notes.md)
     ("leaning_planks", "pgs@4"): "the card house collapses at 4 iterations with serial PGS (a card moves 1.6 m; "
@@ -90,19 +91,26 @@ def test_hard_case(combo):
     assert r.passed, f"{name} with {solver} at {iterations} iterations: {r.figures}"
 
 
+ROUNDING_AT_500 = ("at 500 substeps (h = 33 us) a position update is ~1e-8 m, below float32 resolution at 1 m: "
+                   "rounding keeps the block stirring (mean KE of the last second 1.9e-2 J with pgs, 7.2e-2 J with "
+                   "mass splitting, criterion 1e-2 J)")
+
+
 @pytest.mark.parametrize("solver", ["pgs", "mass-splitting"])
-@pytest.mark.parametrize("iterations", [1, 500])
-def test_resting_block_at_extreme_iteration_counts(request, solver, iterations):
-    """The resting block at 1 and at 500 iterations: finite always; at rest with 500."""
+def test_resting_block_at_one_iteration_stays_finite(request, solver):
+    if not request.config.getoption("--stress"):
+        pytest.skip("stress only (pytest --stress)")
+    r = run_case(CASES["resting_block_27"], solver, 1, arch=TEST_ARCH)
+    assert "non-finite" not in r.figures and "stopped" not in r.figures, r.figures
+
+
+@pytest.mark.parametrize("solver", [pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=ROUNDING_AT_500))
+                                    for s in ("pgs", "mass-splitting")])
+def test_resting_block_at_500_iterations_is_at_rest(request, solver):
     if not request.config.getoption("--stress"):
         pytest.skip("stress only (pytest --stress): 500 substeps per step")
-    r = run_case(CASES["resting_block_27"], solver, iterations, arch=TEST_ARCH)
-    passed, figures = r.passed, r.figures
-    assert "non-finite" not in figures, figures
-    if iterations == 500:
-        if not passed:  # measured: KE 1.9e-2 J (pgs), 7.2e-2 J (mass splitting), criterion 1e-2 J
-            pytest.xfail("at 500 substeps (h = 33 us) a position update is ~1e-8 m, below float32 resolution "
-                         f"at 1 m: rounding keeps the block stirring ({figures})")
+    r = run_case(CASES["resting_block_27"], solver, 500, arch=TEST_ARCH)
+    assert r.passed, r.figures
 
 
 @pytest.mark.parametrize("solver", ["pgs", "mass-splitting"])

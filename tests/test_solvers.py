@@ -54,7 +54,10 @@ def test_mass_splitting_converges_to_pgs(problem, solver):
     imp, vel = _one_step(SMALL_PROBLEMS[problem], solver, 3000)
     scale = np.abs(ref_imp).max()
     assert np.abs(imp - ref_imp).max() / scale < 1e-4
-    assert np.abs(vel - ref_vel).max() < 1e-4 * 9.81 / 60.0 * 10  # [m/s], relative to the gravity velocity
+    # [m/s] what that impulse tolerance can change the lightest body's velocity by (measured
+    # 2026-11-27: at most 2.3e-7 m/s, impulses within 1.5e-6 of the largest)
+    lightest = min(b.mass for b in Scene.from_dict(scene_dict(SMALL_PROBLEMS[problem])).bodies)
+    assert np.abs(vel - ref_vel).max() < 1e-4 * scale / lightest
 
 
 TALL = (0.2, 0.2, 1.0)

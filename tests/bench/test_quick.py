@@ -76,24 +76,12 @@ def test_numbers_are_sane(quick):
     for r in quick["rows"]:
         ms, rate = float(r["ms_per_step"]), float(r["steps_per_s"])
         assert ms > 0 and rate > 0
-        assert float(r["ms_per_step_median"]) <= float(r["ms_per_step_p95"])
         assert int(r["bodies"]) == 210 and int(r["contacts"]) > 0
         for col in ("kinetic_energy", "max_penetration", "mean_penetration", "drift"):
             assert float(r[col]) >= 0.0
         assert float(r["mean_penetration"]) <= float(r["max_penetration"])
         if r["engine"] == "sandbox":
-            stages = sum(float(r[f"ms_{s}"]) for s in bench.STAGES)
-            assert stages == pytest.approx(float(r["ms_profiled_total"]), rel=1e-3)
             assert float(r["residual_rms"]) <= float(r["residual_max"]) + 1e-12
-
-
-def test_cost_grows_with_iterations(quick):
-    """The iteration stage, 16 iterations against 1: sixteen times the work. The whole step is
-    not compared: at these sizes its fixed cost dominates, and a test process beside this one
-    (pytest-xdist) made 16 iterations read 5.03 ms against 5.08 ms for 1 in a CI run."""
-    for solver in bench.QUICK["solvers"]:
-        rows = _sandbox_rows(quick["rows"], "pyramid_20", solver)
-        assert float(rows[-1]["ms_iterate"]) > float(rows[0]["ms_iterate"])
 
 
 @pytest.mark.parametrize("solver", ["pgs", "mass-splitting"])

@@ -3,7 +3,7 @@
 Random box pairs (random sizes, orientations and offsets, from apart to deeply overlapping)
 plus exactly aligned and single-axis-rotated pairs (the resting stacks, where exact ties
 and zero cosines occur): every separation agrees to rounding, and every face, vertex and
-edge index agrees wherever the choice is not a near tie.
+edge index agrees exactly (ties go to the lower index in both).
 """
 
 import numpy as np
@@ -70,11 +70,6 @@ def compared(harness):
 
     run()
     return fsep.to_numpy(), fidx.to_numpy(), faxis.to_numpy()
-
-
-def _second_best_gap(values):
-    v = np.sort(values)[::-1]
-    return v[0] - v[1]
 
 
 def test_face_separations_and_indices_match(compared):

@@ -8,7 +8,6 @@ problem. Wall and rain give the right counts and never start with overlapping bo
 from __future__ import annotations
 
 import copy
-import json
 import math
 import tomllib
 from pathlib import Path
@@ -21,11 +20,10 @@ from sandbox.scene import EventSpec, load_scene, scene_from_dict
 from sandbox.scene import generators
 from sandbox.scene.loader import EFFECTS, EVENT_KINDS, GENERATOR_KINDS
 from sandbox.scene.rotations import quat_to_matrix
-from tests.helpers import TEST_ARCH
+from tests.helpers import TEST_ARCH, anchor_scene
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENES = ROOT / "scenes"
-ANCHORS = Path("/work/shared/anchors/scenes.json")
 SOURCE = "events.toml"
 
 BOX = {"shape": "box", "half_extents": [0.5, 0.5, 0.5]}
@@ -524,9 +522,8 @@ def test_mass_ratio_stacks_ratios():
         assert masses[0] == pytest.approx(1.0) and masses[-1] / masses[0] == pytest.approx(ratio)
         assert np.all(np.diff(masses) > 0)  # heavy on light
         assert np.allclose([b.position[2] for b in column], [0.5, 1.5, 2.5, 3.5])
-    if ANCHORS.exists():
-        ref = json.loads(ANCHORS.read_text())["scenes"]["massratio1000_heavy_on_light"]["bodies"]
-        assert [b.mass for b in scene.bodies[8:]] == pytest.approx([b["mass"] for b in ref])
+    ref = anchor_scene("massratio1000_heavy_on_light")["bodies"]
+    assert [b.mass for b in scene.bodies[8:]] == pytest.approx([b["mass"] for b in ref])
 
 
 def test_spinning_bodies_never_touch():
@@ -561,10 +558,9 @@ def test_headline_pile_scales_to_the_anchor_layout():
     data["generate"][0]["origin"] = [-4.2, -4.2, 0.6]
     big = scene_from_dict(data, source="headline_5000", base_dir=SCENES)
     assert len(big.bodies) == 5000
-    if ANCHORS.exists():
-        ref = json.loads(ANCHORS.read_text())["scenes"]["heightfield_pile"]
-        assert np.allclose([b.position for b in big.bodies], [b["pos"] for b in ref["bodies"]], atol=1e-6)
-        assert np.allclose(mesh.vertices, ref["static"][0]["vertices"], atol=1e-6)
+    ref = anchor_scene("heightfield_pile")
+    assert np.allclose([b.position for b in big.bodies], [b["pos"] for b in ref["bodies"]], atol=1e-6)
+    assert np.allclose(mesh.vertices, ref["static"][0]["vertices"], atol=1e-6)
 
 
 @pytest.mark.parametrize("name", ["leaning_planks", "friction_arch"])

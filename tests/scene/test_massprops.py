@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import trimesh
 
 from sandbox.scene import scene_from_dict
 from sandbox.scene.massprops import (
@@ -58,7 +59,6 @@ def test_sphere_closed_form():
 
 
 def test_capsule_matches_fine_mesh():
-    trimesh = pytest.importorskip("trimesh")
     r, h = 0.3, 0.7
     mp = capsule_mass_properties(r, h, RHO)
     mesh = trimesh.creation.capsule(height=2 * h, radius=r, count=[128, 128])

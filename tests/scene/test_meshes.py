@@ -12,18 +12,15 @@ import copy
 import math
 import re
 import os
-import time
 
 import numpy as np
 import pytest
+import trimesh
 
-pytest.importorskip("coacd")
-trimesh = pytest.importorskip("trimesh")
-
-from sandbox.errors import SceneError  # noqa: E402
-from sandbox.polytope import penetration_depth  # noqa: E402
-from sandbox.scene import decompose, meshes, scene_from_dict  # noqa: E402
-from sandbox.scene.decompose import DecomposeOptions, DecompositionError  # noqa: E402
+from sandbox.errors import SceneError
+from sandbox.polytope import penetration_depth
+from sandbox.scene import decompose, meshes, scene_from_dict
+from sandbox.scene.decompose import DecomposeOptions, DecompositionError
 
 SOURCE = "meshes.toml"
 TORUS_PARAMS = {"major_radius": 0.5, "minor_radius": 0.15, "sections": [16, 8]}
@@ -160,13 +157,10 @@ def test_second_decomposition_reads_the_cache_without_coacd(torus_mesh, coacd_ca
         raise AssertionError("CoACD ran although the decomposition was cached")
 
     monkeypatch.setattr(decompose, "run_coacd", no_coacd)
-    start = time.perf_counter()
-    second = decompose.decompose(torus_mesh, options)
-    elapsed = time.perf_counter() - start
+    second = decompose.decompose(torus_mesh, options)  # no_coacd: read from the cache, or fail
     assert second.cached and second.key == first.key
     assert all(np.array_equal(a, b) for a, b in zip(first.hulls, second.hulls))
     assert np.array_equal(first.cell_inertia, second.cell_inertia)
-    assert elapsed < 0.5  # a file read; a cold run of this mesh takes ~1-2 s
     assert (coacd_cache / "coacd" / f"{first.key}.npz").is_file()
     # options that change the output are part of the key: a new seed must run CoACD again
     with pytest.raises(AssertionError, match="CoACD ran"):
