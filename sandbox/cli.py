@@ -16,11 +16,12 @@ ARCHES = ("cpu", "cuda", "auto")
 def cmd_run(args) -> int:
     from tqdm import tqdm
 
-    from . import Scene, World
+    from . import Scene
     from .scene import resolve_scene
 
     path = resolve_scene(args.scene)
-    scene = Scene.load(path)
+    scene = Scene.load(path)  # a bad scene is refused before Taichi starts (and prints its banner)
+    from . import World
     for warning in scene.warnings:
         print(f"warning    {warning}")
     options = {}

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import copy
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -470,3 +472,12 @@ def test_fuzz_toml_text_raises_only_scene_error(text):
             load_scene(path)
         except SceneError as err:
             assert str(path) in str(err)
+
+
+def test_the_cli_refuses_a_bad_scene_in_one_line_before_starting_taichi(tmp_path):
+    path = _write(tmp_path, "[world]\nbogus = 1\n")
+    run = subprocess.run([sys.executable, "-m", "sandbox.cli", "run", str(path), "--steps", "1"],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2
+    lines = (run.stdout + run.stderr).strip().splitlines()
+    assert len(lines) == 1 and "entry world.bogus: unknown key 'bogus'" in lines[0], lines
