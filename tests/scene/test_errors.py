@@ -284,40 +284,31 @@ def test_mesh_file_unknown_format(tmp_path):
     _expect(path, "static[0].path", "cannot read mesh file")
 
 
-def test_mesh_file_without_faces(tmp_path):
-    (tmp_path / "empty.obj").write_text("# nothing\nv 0 0 0\nv 1 0 0\n")
-    path = _write(tmp_path, "[[static]]\nshape = 'mesh'\npath = 'empty.obj'\n")
-    _expect(path, "static[0].path", "no triangles")
-
-
-def test_mesh_file_flat_hull(tmp_path):
-    (tmp_path / "flat.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n")
-    path = _write(tmp_path, "[[body]]\nshape = 'hull'\npath = 'flat.obj'\nposition = [0, 0, 0]\n")
-    _expect(path, "body[0].path", "degenerate")
-
-
 def test_toml_syntax_error_at_the_end_of_the_file_says_so(tmp_path):
     path = _write(tmp_path, "[world]\ngravity = [0.0, 0.0,\n")
     _expect(path, "end of file (line 2)", "TOML syntax error: Invalid value")
 
 
 NAN_TETRAHEDRON = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nv nan 0.5 0.5\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\nf 2 3 5\n"
+BAD_MESH_FILES = {
+    "no_faces": ("# nothing\nv 0 0 0\nv 1 0 0\n", "static", "no triangles"),
+    "flat_hull": ("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n", "body", "degenerate"),
+    "face_beyond_vertices": ("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 9\n", "static",
+                             "triangle indices out of range"),
+    # trimesh's processing drops NaN vertices and their triangles without a word: the file is
+    # checked as written, before it is processed
+    "nan_vertex_hull": (NAN_TETRAHEDRON, "body", "NaN or inf vertex coordinates"),
+    "nan_vertex_static_mesh": (NAN_TETRAHEDRON, "static", "NaN or inf vertex coordinates"),
+}
 
 
-@pytest.mark.parametrize("section, shape", [("body", "hull"), ("static", "mesh")])
-def test_a_nan_vertex_in_a_mesh_file_is_refused_not_dropped(tmp_path, section, shape):
-    """trimesh's processing drops NaN vertices and their triangles without a word: the file is
-    checked as written, before it is processed."""
-    (tmp_path / "nan.obj").write_text(NAN_TETRAHEDRON)
-    path = _write(tmp_path, f"[[{section}]]\nshape = '{shape}'\npath = 'nan.obj'\n"
-                  + ("position = [0, 0, 0]\n" if section == "body" else ""))
-    _expect(path, f"{section}[0].path", "NaN or inf vertex coordinates")
-
-
-def test_a_mesh_file_with_a_face_beyond_its_vertices_says_so(tmp_path):
-    (tmp_path / "badidx.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 9\n")
-    path = _write(tmp_path, "[[static]]\nshape = 'mesh'\npath = 'badidx.obj'\n")
-    _expect(path, "static[0].path", "triangle indices out of range")
+@pytest.mark.parametrize("case", sorted(BAD_MESH_FILES))
+def test_a_bad_mesh_file_is_refused_with_the_reason(tmp_path, case):
+    content, section, fragment = BAD_MESH_FILES[case]
+    (tmp_path / "shape.obj").write_text(content)
+    entry = ("[[body]]\nshape = 'hull'\nposition = [0, 0, 0]\n" if section == "body"
+             else "[[static]]\nshape = 'mesh'\n")
+    _expect(_write(tmp_path, entry + "path = 'shape.obj'\n"), f"{section}[0].path", fragment)
 
 
 def test_a_seed_beyond_32_bits_is_refused(tmp_path):
