@@ -33,7 +33,7 @@ def shipped_meshes(folder: Path) -> list:
             if body.get("shape") != "mesh":
                 continue
             if "path" in body:
-                v, f = meshes.read_mesh_file(path.parent / body["path"], process=False)
+                v, f = meshes.read_mesh_file(path.parent / body["path"])
                 what = body["path"]
             else:
                 params = {k: v for k, v in body["generator"].items() if k != "kind"}

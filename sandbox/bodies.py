@@ -93,13 +93,16 @@ class Bodies:
         return {name: getattr(self, name).to_numpy()[:n] for name in self.LOAD_FIELDS}
 
     def write_loads(self, loads: dict[str, np.ndarray], body_map: np.ndarray) -> None:
-        """``read_loads``'s arrays again, old body i as body ``body_map[i]`` (-1: gone)."""
+        """``read_loads``'s arrays again, old body i as body ``body_map[i]`` (-1: gone), into a
+        world just uploaded (whose loads are zero) and into its good state, in one launch."""
         kept = body_map >= 0
+        n = int(self.count[None])
+        columns = []
         for name, old in loads.items():
-            for field in (getattr(self, name), getattr(self, "good_" + name)):  # and the good state's copy
-                full = field.to_numpy()
-                full[body_map[kept]] = old[kept]
-                field.from_numpy(full)
+            new = np.zeros((n,) + old.shape[1:], old.dtype)
+            new[body_map[kept]] = old[kept]
+            columns += [(getattr(self, name), 0, new), (getattr(self, "good_" + name), 0, new)]
+        write_rows(columns)
 
     def mark_placed(self, indices: np.ndarray) -> None:
         """Flag the bodies put in the world (by the scene, an edit or a fracture) that no

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from . import timeline
 from .spec import RESISTANCE_KEYS
-from ..solvers import MAX_SEED, SOLVERS  # MAX_SEED: CoACD's and the colouring's seeds alike; the registry itself (Taichi-free), so names and options cannot drift
+from ..solvers import MAX_SEED, SOLVERS  # the registry itself (Taichi-free), so names and options cannot drift
 
 SOLVER_NAMES = tuple(SOLVERS)
 SOLVER_OPTIONS = {name: tuple(info.defaults) for name, info in SOLVERS.items()}

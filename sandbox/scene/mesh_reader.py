@@ -26,7 +26,7 @@ def load_mesh_file(r: Reader, key: str, process: bool = True) -> tuple[np.ndarra
     if cached is not None:
         return cached
     try:
-        vertices, faces = meshes.read_mesh_file(path, process=False)
+        vertices, faces = meshes.read_mesh_file(path)
     except meshes.MeshError as exc:
         raise r.error(str(exc), key) from None
     if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0 or vertices.ndim != 2 or vertices.shape[1] != 3:

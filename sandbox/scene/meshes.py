@@ -127,16 +127,15 @@ def generate(kind: str, params: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ---------------------------------------------------------------------------- files and checks
-def read_mesh_file(path: Path, *, process: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices, faces) of a mesh file, every trimesh failure turned into a MeshError.
-
-    ``process=False`` keeps the file's arrays as they are: trimesh's processing silently drops
-    NaN vertices and their triangles, which would turn a damaged file into a merely open one;
-    ``checked_mesh`` processes the mesh itself after checking it."""
+def read_mesh_file(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) of a mesh file as written, every trimesh failure turned into a
+    MeshError. Unprocessed: trimesh's processing silently drops NaN vertices and their
+    triangles, which would turn a damaged file into a merely open one; the callers check the
+    arrays first (``checked_mesh``, mesh_reader.load_mesh_file), then process them."""
     try:
         import trimesh
 
-        mesh = trimesh.load(str(path), force="mesh", process=process)
+        mesh = trimesh.load(str(path), force="mesh", process=False)
         vertices = np.asarray(getattr(mesh, "vertices", np.empty((0, 3))), dtype=np.float64)
         faces = np.asarray(getattr(mesh, "faces", np.empty((0, 3))), dtype=np.int64)
     except IndexError as exc:  # trimesh's readers index the vertex array with the file's triangles
