@@ -36,7 +36,7 @@ WRAPPED = {
     "sandbox.contacts": ["collide_pairs"],
     "sandbox.persistence": ["match_contacts", "store_contacts"],
     "sandbox.bodies": ["update_world_inertia", "save_good_state"],
-    "sandbox.integrate": ["check_velocities"],
+    "sandbox.integrate": ["check_bodies"],
     "sandbox.solvers.rows": ["prepare_rows", "prepare_response"],
     "sandbox.solvers.mass_splitting": ["build_adjacency"],
     "sandbox.solvers.substep": ["iterate_in_order", "iterate_shared"],

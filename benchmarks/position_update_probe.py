@@ -5,7 +5,10 @@
 On the first GPU run (docs/bench.md, "On a GPU") the position update's loop cost ~1 ms per
 launch on CUDA whatever the body count, while every other body loop of a substep took 5-15 us.
 This times ``integrate_positions`` beside kernels that each do one of its parts over the same
-bodies, so the part that carries the millisecond shows. The kernels step by zero and scale the
+bodies, and the whole update with one part left out at a time (``pose_without``), so the part
+that carries the millisecond shows. On the second GPU run (2026-11-27) it was the non-finite
+checks with their guarded atomics (984 us with them, 88 us without); they now run once per step,
+at its end (integrate.check_bodies_loops). The kernels step by zero and scale the
 velocities by zero, so the bodies stay where they are (orientations are renormalised and the
 gyroscopic variant rewrites angular velocities: a probe, not a simulation).
 """
@@ -17,7 +20,7 @@ import taichi as ti
 
 from sandbox import Scene, World
 from sandbox import integrate
-from sandbox.awake import EVERY
+from sandbox.awake import EVERY, body_id, body_total
 from sandbox.math3d import any_nonfinite3, two_sum
 from sandbox.scene.library import resolve_scene
 
@@ -58,6 +61,43 @@ def error_check(bodies: ti.template(), err: ti.template()):
             ti.atomic_min(err.body[None], i)
 
 
+@ti.kernel
+def pose_without(bodies: ti.template(), err: ti.template(), h: ti.f32, drop: ti.template()):
+    """``advance_pose`` (non-gyroscopic) with the parts named in ``drop`` left out: the parts
+    alone are cheap on CUDA, so the one whose removal takes the millisecond away is the cause."""
+    for k in range(body_total(bodies, EVERY) if ti.static("body_total" not in drop) else bodies.count[None]):
+        i = body_id(EVERY, k)
+        if bodies.inv_mass[i] > 0.0:
+            v = bodies.lin_vel[i]
+            w = bodies.ang_vel[i]
+            if ti.static("checks" not in drop):
+                if any_nonfinite3(v) or any_nonfinite3(w):
+                    ti.atomic_or(err.flags[None], integrate.ERR_VELOCITY)
+                    ti.atomic_min(err.body[None], i)
+            dx = h * v
+            x = bodies.pos[i] + dx
+            if ti.static("compensated sum" not in drop):
+                x1, rem = two_sum(bodies.pos[i], dx + bodies.pos_rem[i])
+                x = x1
+                bodies.pos_rem[i] = rem
+            if ti.static("moved +=" not in drop):
+                bodies.moved[i] += dx
+            q = bodies.rot[i]
+            if ti.static("rotation" not in drop):
+                q, _ = integrate.rotate_free(bodies.rot[i], w, bodies.inertia[i], bodies.inv_inertia[i], h, 0)
+            if ti.static("checks" not in drop):
+                if any_nonfinite3(x) or any_nonfinite3(ti.math.vec3(q[1], q[2], q[3])) or not (ti.abs(q[0]) <= 1.0):
+                    ti.atomic_or(err.flags[None], integrate.ERR_POSE)
+                    ti.atomic_min(err.body[None], i)
+            bodies.pos[i] = x
+            bodies.rot[i] = q
+            bodies.ang_vel[i] = w
+
+
+ABLATIONS = ((), ("body_total",), ("checks",), ("compensated sum",), ("moved +=",), ("rotation",),
+             ("checks", "moved +="), ("checks", "compensated sum", "moved +=", "rotation"))
+
+
 def per_launch_us(kernel, *args, launches: int) -> float:
     kernel(*args)
     ti.sync()
@@ -79,14 +119,18 @@ def main() -> None:
     bodies, err = world.buf.bodies, world.buf.errors
     print(f"{a.scene} on {a.arch}: {bodies.count[None]} bodies")
     runs = [("integrate_velocities", integrate.integrate_velocities, (bodies, EVERY, ti.math.vec3(0.0), 0.0)),
-            ("integrate_positions", integrate.integrate_positions, (bodies, EVERY, 0, 0.0, err)),
+            ("integrate_positions", integrate.integrate_positions, (bodies, EVERY, 0, 0.0)),
             ("integrate_positions, gyroscopic", integrate.integrate_positions,
-             (bodies, EVERY, integrate.GYROSCOPIC, 0.0, err)),
+             (bodies, EVERY, integrate.GYROSCOPIC, 0.0)),
             ("axpy", axpy, (bodies,)), ("compensated sum", compensated_sum, (bodies,)),
             ("moved +=", moved_add, (bodies,)), ("rotation", rotation, (bodies,)),
             ("error atomics", error_check, (bodies, err))]
     for name, kernel, args in runs:
         print(f"  {name:34s} {per_launch_us(kernel, *args, launches=a.launches):9.1f} us/launch", flush=True)
+    print("the position update (h = 0), one part left out at a time:")
+    for drop in ABLATIONS:
+        us = per_launch_us(pose_without, bodies, err, 0.0, drop, launches=a.launches)
+        print(f"  without {', '.join(drop) or 'nothing':30s} {us:9.1f} us/launch", flush=True)
 
 
 if __name__ == "__main__":

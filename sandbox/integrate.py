@@ -137,24 +137,33 @@ def _rotate_gyroscopic(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia
 
 
 @ti.func
-def check_velocities_loops(bodies: ti.template(), err: ti.template(), awake: ti.template()):
+def check_bodies_loops(bodies: ti.template(), err: ti.template(), awake: ti.template()):
+    """Flags a body whose velocity or pose is not finite, once per step, at its end. Non-finite
+    numbers stay non-finite (a NaN or infinite velocity makes a NaN or infinite pose), so this one
+    check finds what a check in every position update would. There it cost most of a CUDA substep:
+    with its two guarded atomics the position update took ~1 ms per launch on an H200 whatever the
+    body count, 88 us without them (benchmarks/position_update_probe.py, docs/bench.md)."""
     n = body_total(bodies, awake)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):
         i = body_id(awake, k)
         if bodies.inv_mass[i] > 0.0:
-            if any_nonfinite3(bodies.lin_vel[i]) or any_nonfinite3(bodies.ang_vel[i]):
-                ti.atomic_or(err.flags[None], ERR_VELOCITY)
+            q = bodies.rot[i]
+            bad_velocity = any_nonfinite3(bodies.lin_vel[i]) or any_nonfinite3(bodies.ang_vel[i])
+            bad_pose = (any_nonfinite3(bodies.pos[i]) or any_nonfinite3(vec3(q[1], q[2], q[3]))
+                        or not (ti.abs(q[0]) <= 1.0))
+            if bad_velocity or bad_pose:
+                ti.atomic_or(err.flags[None], ERR_VELOCITY if bad_velocity else ERR_POSE)
                 ti.atomic_min(err.body[None], i)
 
 
 @ti.kernel
-def check_velocities(bodies: ti.template(), err: ti.template(), awake: ti.template()):
-    check_velocities_loops(bodies, err, awake)
+def check_bodies(bodies: ti.template(), err: ti.template(), awake: ti.template()):
+    check_bodies_loops(bodies, err, awake)
 
 
 @ti.func
-def advance_pose(bodies: ti.template(), motion: ti.template(), h: ti.f32, err: ti.template(), i: ti.i32):
+def advance_pose(bodies: ti.template(), motion: ti.template(), h: ti.f32, i: ti.i32):
     """Body i's position and orientation over ``h`` with its solved velocities.
 
     With the DAMPING bit, the velocities are damped first, implicitly (``v / (1 + h c)``, Box2D's
@@ -168,16 +177,10 @@ def advance_pose(bodies: ti.template(), motion: ti.template(), h: ti.f32, err: t
             v = v / (1.0 + h * c[0])
             w = w / (1.0 + h * c[1])
             bodies.lin_vel[i] = v
-        if any_nonfinite3(v) or any_nonfinite3(w):
-            ti.atomic_or(err.flags[None], ERR_VELOCITY)
-            ti.atomic_min(err.body[None], i)
         dx = h * v
         x, rem = two_sum(bodies.pos[i], dx + bodies.pos_rem[i])
         bodies.moved[i] += dx
         q, w1 = rotate_free(bodies.rot[i], w, bodies.inertia[i], bodies.inv_inertia[i], h, motion)
-        if any_nonfinite3(x) or any_nonfinite3(vec3(q[1], q[2], q[3])) or not (ti.abs(q[0]) <= 1.0):
-            ti.atomic_or(err.flags[None], ERR_POSE)
-            ti.atomic_min(err.body[None], i)
         bodies.pos[i] = x
         bodies.pos_rem[i] = rem
         bodies.rot[i] = q
@@ -185,13 +188,11 @@ def advance_pose(bodies: ti.template(), motion: ti.template(), h: ti.f32, err: t
 
 
 @ti.func
-def positions_loop(bodies: ti.template(), awake: ti.template(), motion: ti.template(), h: ti.f32,
-                   err: ti.template()):
+def positions_loop(bodies: ti.template(), awake: ti.template(), motion: ti.template(), h: ti.f32):
     for k in range(body_total(bodies, awake)):
-        advance_pose(bodies, motion, h, err, body_id(awake, k))
+        advance_pose(bodies, motion, h, body_id(awake, k))
 
 
 @ti.kernel
-def integrate_positions(bodies: ti.template(), awake: ti.template(), motion: ti.template(), h: ti.f32,
-                        err: ti.template()):
-    positions_loop(bodies, awake, motion, h, err)
+def integrate_positions(bodies: ti.template(), awake: ti.template(), motion: ti.template(), h: ti.f32):
+    positions_loop(bodies, awake, motion, h)

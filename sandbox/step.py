@@ -51,7 +51,7 @@ from .broadphase import speculation
 from .effects import CompiledEffects
 from .errors import CapacityError, SimulationError
 from .formulation import sweep_plan
-from .integrate import check_velocities, motion_switch
+from .integrate import check_bodies, motion_switch
 from .manifold_cache import overlap_depth
 from .persistence import match_contacts, store_contacts
 from .sleep import after_step, wake_touched
@@ -196,7 +196,7 @@ class Stepper:
             if fused:
                 step_kernels.finish_step(b, c.schedule.kind, awake, self.edits.dispatch)
             else:
-                check_velocities(b.bodies, b.errors, awake)
+                check_bodies(b.bodies, b.errors, awake)
                 update_support(b.blocks, b.contacts, b.rows, b.bodies, awake, c.schedule.kind, self.edits.dispatch)
                 store_contacts(b.history, b.contacts, b.rows, b.shapes, k, awake, self.edits.dispatch)
 
@@ -281,7 +281,7 @@ class Stepper:
                     if pause:
                         yield Sweep(i, k, "biased", j, sweeps, False)
             with p.stage("integrate_positions"):
-                integrate_positions(b.bodies, awake, loop.motion, loop.h, b.errors)
+                integrate_positions(b.bodies, awake, loop.motion, loop.h)
             with p.stage("relax"):
                 n_relax = relax + (int(b.rows.fast_push[None]) if watch_push else 0)
                 for j in range(n_relax):

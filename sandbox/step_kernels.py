@@ -20,7 +20,7 @@ import taichi as ti
 from .bodies import save_good_state_loops, update_world_inertia_loops
 from .broadphase import build_dynamic_grid_loops, find_pairs_loops
 from .contacts import collide_pairs_loops
-from .integrate import BIG, check_velocities_loops
+from .integrate import BIG, check_bodies_loops
 from .persistence import match_contact, store_contacts_loops
 from .sleep import rest_and_label_loops
 from .solvers.impact_carry import clear_impacts
@@ -84,7 +84,7 @@ def finish_step_loops(b: ti.template(), kind: ti.template(), substeps: ti.i32, a
     """Velocity check, the bodies' support loads and the contact store for the next step; in a
     sleeping world also the rest timers and islands (sleep.rest_and_label_loops, its scalars
     after ``awake``)."""
-    check_velocities_loops(b.bodies, b.errors, awake)
+    check_bodies_loops(b.bodies, b.errors, awake)
     update_support_loops(b.blocks, b.contacts, b.rows, b.bodies, awake, kind, dispatch)
     store_contacts_loops(b.history, b.contacts, b.rows, b.shapes, substeps, awake, dispatch)
     if ti.static(awake.compact):

@@ -98,7 +98,7 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
     push under the Jacobi family, Settings.relax_push_speed). ``track``: each substep's impulses
     are added to the step's (``rows.lam_step``). ``b``: the world's BufferSet (one template
     argument instead of six: step_kernels.py says why)."""
-    s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
+    s, rows, c, bodies, col = b.blocks, b.rows, b.contacts, b.bodies, b.coloring
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
     fold = ti.static(folds_warm_start(schedule, warm))
     ti.loop_config(serialize=True)
@@ -111,7 +111,7 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
             rows.fast_push[None] = 0
         for _sb in range(sweeps):
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h, it)
-        positions_loop(bodies, awake, motion, h, err)
+        positions_loop(bodies, awake, motion, h)
         n_relax = relax
         if ti.static(schedule == BLOCKS):
             n_relax = relax + rows.fast_push[None]  # a fast push: one more relax sweep (Settings.relax_push_speed)
@@ -144,7 +144,7 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     here to 1 / 0, folds_this_step). ``substep``: its index in the step
     (visit_order.visited_point)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
-    s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
+    s, rows, c, bodies, col = b.blocks, b.rows, b.contacts, b.bodies, b.coloring
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
     warm_here, warm_next = first, then_warm
     if ti.static(folds_warm_start(schedule, warm)):  # a step with an impact row does not fold (folds_this_step)
@@ -154,7 +154,7 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     if ti.static(schedule == BLOCKS):
         rows.fast_push[None] = 0
     _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h, substep)
-    positions_loop(bodies, awake, motion, h, err)
+    positions_loop(bodies, awake, motion, h)
     if ti.static(schedule == BLOCKS):
         # a fast push: a second relax sweep, which then carries the next substep's warm start
         extra = rows.fast_push[None]
@@ -203,7 +203,7 @@ advance its pose, or add its slots and then advance its pose."""
 
 @ti.func
 def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
-                bodies: ti.template(), awake: ti.template(), motion: ti.template(), err: ti.template(),
+                bodies: ti.template(), awake: ti.template(), motion: ti.template(),
                 what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32) -> ti.i32:
     n = body_total(bodies, awake)
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
@@ -215,7 +215,7 @@ def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32,
             if ti.static(what == GRAVITY):
                 apply_gravity(bodies, gravity, h, i)
             if ti.static(what == POSE or what == GATHER_POSE):
-                advance_pose(bodies, motion, h, err, i)
+                advance_pose(bodies, motion, h, i)
         tm.finish(team, p, hi - lo)
         lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
     tm.wait(team, p, n)
@@ -251,7 +251,7 @@ def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
 @ti.func
 def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
                   rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
-                  motion: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
+                  motion: ti.template(), col: ti.template(), kind: ti.template(),
                   schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3,
                   h: ti.f32, substep: ti.i32, fast_slot: ti.i32 = 0) -> ti.i32:
     """One sweep of substep ``substep`` (visit_order.visited_point); ``pose_after``: the bodies'
@@ -260,16 +260,16 @@ def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
     if ti.static(schedule == PGS_COLORED):
         p = _color_phases(team, p, member, members, rows, c, bodies, col, mode, friction, substep)
         if pose_after:
-            p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, POSE, vec3(0.0), gravity, h)
+            p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
     else:
         p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, mode, friction, then_warm, False,
                          substep, fast_slot)
         dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
         if pose_after:
-            p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GATHER_POSE, dv_extra, gravity,
+            p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_POSE, dv_extra, gravity,
                             h)
         else:
-            p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GATHER, dv_extra, gravity, h)
+            p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER, dv_extra, gravity, h)
     return p
 
 
@@ -290,7 +290,7 @@ def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 
 @ti.func
 def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(),
-                 c: ti.template(), bodies: ti.template(), col: ti.template(), err: ti.template(), kind: ti.template(),
+                 c: ti.template(), bodies: ti.template(), col: ti.template(), kind: ti.template(),
                  schedule: ti.template(), friction: ti.template(), warm: ti.template(), track: ti.template(),
                  awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
                  sweeps: ti.i32, relax: ti.i32):
@@ -304,14 +304,14 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
         if first:
             if ti.static(warm):
                 p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, True)
-                p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GATHER, gravity * h,
+                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER, gravity * h,
                                 gravity, h)
             else:
-                p = _body_phase(team, p, member, members, s, bodies, awake, motion, err, GRAVITY, vec3(0.0),
+                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GRAVITY, vec3(0.0),
                                 gravity, h)
         fast_slot = p  # this substep's biased phases mark a fast push here; read once they are all done
         for sb in range(sweeps):
-            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
+            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
                               BIASED, friction, 0, int(sb == sweeps - 1), gravity, h, it, fast_slot)
         n_relax = relax
         if ti.static(schedule == BLOCKS):
@@ -320,7 +320,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
             then_warm = 0
             if ti.static(fold):
                 then_warm = folds_this_step(rows) if it < iterations - 1 and sr == n_relax - 1 else 0
-            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, err, kind, schedule,
+            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
                               RELAX, friction, then_warm, 0, gravity, h, it)
         if ti.static(track):
             p = _point_phase(team, p, member, members, c, rows)
@@ -335,12 +335,12 @@ def iterate_shared_loops(team: ti.template(), b: ti.template(), kind: ti.templat
     counter of the team (sized for at least ``shared_phase_bound`` x ``members``, Schedule.team):
     a serial loop, then one top-level loop that starts a member per thread."""
     ti.static_assert(schedule != PGS, "serial PGS has nothing to share")
-    s, rows, c, bodies, col, err = b.blocks, b.rows, b.contacts, b.bodies, b.coloring, b.errors
+    s, rows, c, bodies, col = b.blocks, b.rows, b.contacts, b.bodies, b.coloring
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
     tm.reset_loop(team, ti.static(team.claimed.shape[0]))
     for i in range(members * tm.TASK_ITEMS):
         if i % tm.TASK_ITEMS == 0:
-            _team_member(team, i // tm.TASK_ITEMS, members, s, rows, c, bodies, col, err, kind, schedule, friction,
+            _team_member(team, i // tm.TASK_ITEMS, members, s, rows, c, bodies, col, kind, schedule, friction,
                          warm, track, awake, motion, gravity, h, iterations, sweeps, relax)
 
 
