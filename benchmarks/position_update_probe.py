@@ -5,10 +5,11 @@
 On the first GPU run (docs/bench.md, "On a GPU") the position update's loop cost ~1 ms per
 launch on CUDA whatever the body count, while every other body loop of a substep took 5-15 us.
 This times ``integrate_positions`` beside kernels that each do one of its parts over the same
-bodies, and the whole update with one part left out at a time (``pose_without``), so the part
-that carries the millisecond shows. On the second GPU run (2026-11-27) it was the non-finite
-checks with their guarded atomics (984 us with them, 88 us without); they now run once per step,
-at its end (integrate.check_bodies_loops). The kernels step by zero and scale the
+bodies (``error atomics``: the velocity check it used to have), and the update as it was until
+2026-11-27 with one part left out at a time (``pose_without``), so the part that carries the
+millisecond shows. On the second GPU run it was the two non-finite checks with their guarded
+atomics (983-984 us with them, 88 us without); they now run once per step, at its end
+(integrate.check_bodies_loops), so ``integrate_positions`` is now the update without them. The kernels step by zero and scale the
 velocities by zero, so the bodies stay where they are (orientations are renormalised and the
 gyroscopic variant rewrites angular velocities: a probe, not a simulation).
 """
@@ -63,8 +64,9 @@ def error_check(bodies: ti.template(), err: ti.template()):
 
 @ti.kernel
 def pose_without(bodies: ti.template(), err: ti.template(), h: ti.f32, drop: ti.template()):
-    """``advance_pose`` (non-gyroscopic) with the parts named in ``drop`` left out: the parts
-    alone are cheap on CUDA, so the one whose removal takes the millisecond away is the cause."""
+    """The non-gyroscopic position update as it was until 2026-11-27 (``advance_pose`` with its two
+    non-finite checks, no damping) with the parts named in ``drop`` left out: the parts alone are
+    cheap on CUDA, so the one whose removal takes the millisecond away is the cause."""
     for k in range(body_total(bodies, EVERY) if ti.static("body_total" not in drop) else bodies.count[None]):
         i = body_id(EVERY, k)
         if bodies.inv_mass[i] > 0.0:

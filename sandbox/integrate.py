@@ -138,11 +138,13 @@ def _rotate_gyroscopic(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia
 
 @ti.func
 def check_bodies_loops(bodies: ti.template(), err: ti.template(), awake: ti.template()):
-    """Flags a body whose velocity or pose is not finite, once per step, at its end. Non-finite
-    numbers stay non-finite (a NaN or infinite velocity makes a NaN or infinite pose), so this one
-    check finds what a check in every position update would. There it cost most of a CUDA substep:
-    with its two guarded atomics the position update took ~1 ms per launch on an H200 whatever the
-    body count, 88 us without them (benchmarks/position_update_probe.py, docs/bench.md)."""
+    """Flags a body whose velocity or pose is not finite, once per step, at its end. Within a step
+    every write to a body's velocity and pose adds to the old value (sweeps, gravity, damping, the
+    compensated position sum, the normalised rotation), and IEEE arithmetic keeps a NaN or an
+    infinity through that, so this one check finds whatever a check in every position update
+    would, the same body included. There it cost most of a CUDA substep: with its two guarded
+    atomics the position update took ~1 ms per launch on an H200 whatever the body count, 88 us
+    without them (benchmarks/position_update_probe.py, docs/bench.md)."""
     n = body_total(bodies, awake)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):

@@ -7,8 +7,8 @@ The step, stage by stage (names = profile keys = report keys, profile.STAGES):
 3. ``prepare``      rows, warm-start matching, schedule set-up (solvers/)
 4. ``iterations`` substeps of h / iterations (Box2D v3's soft step, see solvers/rows.py):
    ``integrate_velocities`` (gravity), ``iterate`` (warm start + one biased sweep of the
-   chosen schedule), ``integrate_positions`` (symplectic Euler, conservative rotation,
-   finite guard), ``relax`` (one rigid sweep without position bias; two after a fast push
+   chosen schedule), ``integrate_positions`` (symplectic Euler, conservative rotation),
+   ``relax`` (one rigid sweep without position bias; two after a fast push
    under the Jacobi family when ``Settings.relax_push_speed`` asks for it)
 5. ``relax``        restitution pass (repeated until the bounce converges, for every schedule),
    impulses stored for the next step
@@ -18,7 +18,7 @@ biased sweeps of rigid Baumgarte rows and no relax sweep (formulation.py).
 
 Python only orchestrates. With the profiler off, the once-per-step stages run in three
 launches (``step_kernels.py``: state save + broadphase + narrowphase, then rows + matching +
-schedule set-up, then velocity check + contact store; the same loops as the per-stage
+schedule set-up, then the bodies' finite check + contact store; the same loops as the per-stage
 kernels, the same bits). The iteration loop of step 4 is one kernel launch on the CPU,
 shared by its threads (``Settings.iteration_launch``, solvers/substep.py and team.py:
 launch and dispatch overhead, not arithmetic, bound small scenes), and where nothing runs

@@ -2,7 +2,7 @@
 and for a world with nothing to do on the host mid-step, the solve in one.
 
 A step's set-up is a dozen small kernels (save state, world inertia, grid, pairs,
-narrowphase, rows, warm-start matching, adjacency, responses, velocity check, contact
+narrowphase, rows, warm-start matching, adjacency, responses, finite check, contact
 store), each a launch of ~50 us of Python and runtime, and each parallel loop waits for
 both worker threads. Every stage's loops are written once as a ``ti.func`` (``*_loops``,
 next to its kernel); here they are chained at the top level of one kernel each, so every
@@ -81,7 +81,7 @@ def prepare_step(b: ti.template(), kind: ti.template(), mode: ti.template(), spl
 @ti.func
 def finish_step_loops(b: ti.template(), kind: ti.template(), substeps: ti.i32, awake: ti.template(), h: ti.f32,
                       lin: ti.f32, ang: ti.f32, rest_time: ti.f32, dispatch: ti.template()):
-    """Velocity check, the bodies' support loads and the contact store for the next step; in a
+    """The bodies' finite check (velocity and pose), their support loads and the contact store for the next step; in a
     sleeping world also the rest timers and islands (sleep.rest_and_label_loops, its scalars
     after ``awake``)."""
     check_bodies_loops(b.bodies, b.errors, awake)

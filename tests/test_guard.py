@@ -48,6 +48,19 @@ def test_runaway_body_stops_the_step_before_the_broadphase_overflows():
     assert np.all(np.isfinite(world.state()["position"]))
 
 
+def test_a_pose_that_turns_non_finite_is_named_and_the_step_undone():
+    """A finite spin so fast that the rotation step overflows float32 (|w| h / 2 > 1.8e19) turns
+    the orientation into NaN while every velocity stays finite: the once-per-step check at the
+    step's end (integrate.check_bodies_loops) names the pose, and the world keeps its last good
+    state."""
+    scene = Scene.from_dict(scene_dict([box_body([0, 0, 5.0]), box_body([3, 0, 0.5])]))
+    world = World(scene, solver="mass-splitting", iterations=4, arch=TEST_ARCH)
+    world.step(2)
+    world.set_velocity([0], angular=[0.0, 0.0, 1e30])
+    text = _failing_step_keeps_state(world)
+    assert "non-finite integrate_positions (pose) of body 0" in text and "last good state" in text
+
+
 def test_colored_pgs_with_restitution_steps_on_the_cpu():
     """The restitution pass sweeps colour by colour even when the iterations run in one launch:
     it reads the colour ranges itself (a bouncing box, pgs-colored, CPU)."""

@@ -264,7 +264,7 @@ def test_shared_iteration_loop_with_any_team_size(solver, monkeypatch):
 def test_fused_step_kernels_give_the_profiled_bits(solver):
     """The once-per-step stages fused into three launches (step_kernels.py: state save to
     narrowphase; adjacency, then rows + matching + responses in one loop over the points;
-    velocity check and contact store) compute what the separate, profiled kernels do."""
+    finite check and contact store) compute what the separate, profiled kernels do."""
     scene = Scene.from_dict(_pile_300())
     states = []
     for profile in (True, False):
