@@ -9,8 +9,8 @@ bodies (``error atomics``: the velocity check it used to have), and the update a
 2026-11-27 with one part left out at a time (``pose_without``), so the part that carries the
 millisecond shows. On the second GPU run it was the two non-finite checks with their guarded
 atomics (983-984 us with them, 88 us without); they now run once per step, at its end
-(integrate.check_bodies_loops), so ``integrate_positions`` is now the update without them. The kernels step by zero and scale the
-velocities by zero, so the bodies stay where they are (orientations are renormalised and the
+(integrate.check_bodies_loops), so ``integrate_positions`` is now the update without them.
+The kernels step by zero and scale the velocities by zero, so the bodies stay where they are (orientations are renormalised and the
 gyroscopic variant rewrites angular velocities: a probe, not a simulation).
 """
 
@@ -88,7 +88,7 @@ def pose_without(bodies: ti.template(), err: ti.template(), h: ti.f32, drop: ti.
             if ti.static("rotation" not in drop):
                 q, _ = integrate.rotate_free(bodies.rot[i], w, bodies.inertia[i], bodies.inv_inertia[i], h, 0)
             if ti.static("checks" not in drop):
-                if any_nonfinite3(x) or any_nonfinite3(ti.math.vec3(q[1], q[2], q[3])) or not (ti.abs(q[0]) <= 1.0):
+                if integrate.nonfinite_pose(x, q):
                     ti.atomic_or(err.flags[None], integrate.ERR_POSE)
                     ti.atomic_min(err.body[None], i)
             bodies.pos[i] = x

@@ -137,6 +137,13 @@ def _rotate_gyroscopic(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia
 
 
 @ti.func
+def nonfinite_pose(x: vec3, q: vec4) -> ti.i32:
+    """1 when a position or an orientation holds a NaN or an infinity (a unit quaternion's real
+    part is in [-1, 1]; a NaN fails that comparison)."""
+    return any_nonfinite3(x) or any_nonfinite3(vec3(q[1], q[2], q[3])) or not (ti.abs(q[0]) <= 1.0)
+
+
+@ti.func
 def check_bodies_loops(bodies: ti.template(), err: ti.template(), awake: ti.template()):
     """Flags a body whose velocity or pose is not finite, once per step, at its end. Within a step
     every write to a body's velocity and pose adds to the old value (sweeps, gravity, damping, the
@@ -150,10 +157,8 @@ def check_bodies_loops(bodies: ti.template(), err: ti.template(), awake: ti.temp
     for k in range(n):
         i = body_id(awake, k)
         if bodies.inv_mass[i] > 0.0:
-            q = bodies.rot[i]
             bad_velocity = any_nonfinite3(bodies.lin_vel[i]) or any_nonfinite3(bodies.ang_vel[i])
-            bad_pose = (any_nonfinite3(bodies.pos[i]) or any_nonfinite3(vec3(q[1], q[2], q[3]))
-                        or not (ti.abs(q[0]) <= 1.0))
+            bad_pose = nonfinite_pose(bodies.pos[i], bodies.rot[i])
             if bad_velocity or bad_pose:
                 ti.atomic_or(err.flags[None], ERR_VELOCITY if bad_velocity else ERR_POSE)
                 ti.atomic_min(err.body[None], i)

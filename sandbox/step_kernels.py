@@ -81,9 +81,9 @@ def prepare_step(b: ti.template(), kind: ti.template(), mode: ti.template(), spl
 @ti.func
 def finish_step_loops(b: ti.template(), kind: ti.template(), substeps: ti.i32, awake: ti.template(), h: ti.f32,
                       lin: ti.f32, ang: ti.f32, rest_time: ti.f32, dispatch: ti.template()):
-    """The bodies' finite check (velocity and pose), their support loads and the contact store for the next step; in a
-    sleeping world also the rest timers and islands (sleep.rest_and_label_loops, its scalars
-    after ``awake``)."""
+    """The bodies' finite check (velocity and pose), their support loads and the contact store
+    for the next step; in a sleeping world also the rest timers and islands
+    (sleep.rest_and_label_loops, its scalars after ``awake``)."""
     check_bodies_loops(b.bodies, b.errors, awake)
     update_support_loops(b.blocks, b.contacts, b.rows, b.bodies, awake, kind, dispatch)
     store_contacts_loops(b.history, b.contacts, b.rows, b.shapes, substeps, awake, dispatch)
