@@ -68,6 +68,20 @@ class Settings:
     (F K~ h^2 / (S kappa^2)): few iterations sag, they never fly. 0 turns the limit off
     (benchmarks/stiffness_limit.py scans the unlimited springs)."""
 
+    contact_rocking_stiffness: float = 1.0
+    """[1] How much stiffer than its capped spring a contact face is against rocking, at most:
+    where the stability limit caps a row's spring below the one asked for, the row's push-out
+    reads its depth beyond the mean depth of its manifold's touching points up to this many
+    times over (contact_spring.rocking_share), so a face resists turning on its support as if
+    its spring were up to 1 + this times stiffer, while its compression (all points alike)
+    keeps the capped spring. Why: a tall column on springs buckles under its own weight
+    (P-Delta) when they are too soft in rotation, however stable the solve; a 20-box column
+    needs omega >= ~270 rad/s and mass splitting at 8 iterations may carry only 193
+    (benchmarks/column_buckling.py; docs/method-notes.md, "The nudged column"). Raising the
+    limit instead rings compressed stacks and drops the card house. Rows the limit does not
+    cap are untouched (PGS at 8 iterations and more, most rows at 15), and so is block mass
+    splitting (SolverInfo.stiffens_rocking says why). 0 turns it off."""
+
     contact_damping_ratio: float = 10.0
     """[1] Damping ratio of that spring. Heavily over-damped (10) so a correction
     never overshoots; together with the regularisation it brings, this is what
@@ -297,6 +311,7 @@ class Settings:
                 limit = "a finite number >= 0" if top == math.inf else f"in [0, {top:.5g}]"
                 raise SandboxError(f"{name} must be {limit} (0 turns manifold reuse off), got {value!r}")
         for name, low, high, closed in (("contact_stiffness_limit", 0.0, math.inf, True),
+                                        ("contact_rocking_stiffness", 0.0, math.inf, True),
                                         ("contact_deflection", 0.0, math.inf, True),
                                         ("contact_load_time", 0.0, math.inf, False),
                                         ("contact_preload_lag", 0.0, math.inf, False),

@@ -207,7 +207,8 @@ class Stepper:
         key = (b, s, c.schedule, h, plan, *c.gravity)
         if key != self._constants_key:
             h_sub = h / plan.substeps
-            upload_row_params(b.rows, row_params(s, h_sub, plan.biased, h, c.gravity))
+            upload_row_params(b.rows, row_params(s, h_sub, plan.biased, h, c.gravity,
+                                                 c.schedule.info.stiffens_rocking))
             b.scalars.write(*step_scalar_values(s, c.schedule.relaxation(s), h, plan))
             self._constants_key = key
 

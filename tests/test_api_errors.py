@@ -83,6 +83,9 @@ def test_unknown_settings_are_refused():
                                                 ("contact_preload_lag", 0.0, "contact_preload_lag must be a finite "
                                                                               "number > 0"),
                                                 ("contact_preload_lag", float("inf"), "contact_preload_lag must"),
+                                                ("contact_rocking_stiffness", -0.5, "contact_rocking_stiffness must be a "
+                                                                                    "finite number >= 0"),
+                                                ("contact_rocking_stiffness", float("nan"), "contact_rocking_stiffness"),
                                                 # 0 would make every resting contact an impact, its warm start dropped
                                                 ("restitution_threshold", 0.0, "restitution_threshold must be a finite "
                                                                                "number > 0"),

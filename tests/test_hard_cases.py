@@ -45,16 +45,22 @@ KNOWN_FAILURES = {
     ("projectile_200ms_thin_wall", "jacobi@4"): "no tunnelling, but the under-relaxed sphere rebounds at 18.8 m/s "
                                                 "at 4 iterations",
     # the plain stack stands at 4 iterations with mass splitting and Jacobi only because their sweeps keep a
-    # straight column straight: nudged, every solver lets it fall (P-Delta on springs the stability limit
-    # keeps soft, docs/method-notes.md)
-    ("nudged_stack_20", "*@4"): "a 1 mm/s nudge of the top box topples the column at 4 iterations with every solver "
-                                "(top 0.4-13 m)",
-    ("stack_20", "block-mass-splitting@4"): "the column topples at 4 iterations (peak 16 m/s)",
-    ("stack_20", "pgs-colored@4"): "the column sways out of line at 4 iterations (top drift 33.6 mm, criterion 10 mm)",
-    # serial PGS's sway grows at 2 and 4 iterations until the column falls (tests/test_solver_robustness.py);
-    # at 8-30 it stands since a Gauss-Seidel pass starts each manifold at its next point every substep
-    # (visit_order.visited_point; it swayed 22-26 mm there with one fixed order)
-    ("stack_20", "pgs@4"): "the column leans over at 4 iterations with serial PGS (top drift 441.5 mm in 10 s)",
+    # straight column straight: nudged, it buckles (P-Delta on springs the stability limit keeps soft,
+    # docs/method-notes.md). Since 2026-11-27 a face resists rocking more stiffly than its capped spring
+    # (Settings.contact_rocking_stiffness): coloured PGS holds it at 4 (5.8 mm), mass splitting and Jacobi
+    # from 8 (at 4 they lean slower: 197 mm in 10 s, were 511-514 mm); block mass splitting, left out of it,
+    # from 8 as before
+    ("nudged_stack_20", "pgs@4"): "the nudged column leans 18.0 mm in 10 s at 4 iterations with serial PGS "
+                                  "(criterion 10 mm)",
+    ("nudged_stack_20", "jacobi@4"): "the nudged column buckles at 4 iterations (top 197.5 mm in 10 s)",
+    ("nudged_stack_20", "mass-splitting@4"): "the nudged column buckles at 4 iterations (top 197.1 mm in 10 s)",
+    ("nudged_stack_20", "block-mass-splitting@4"): "the nudged column buckles at 4 iterations (top 668.3 mm in 10 s)",
+    ("stack_20", "block-mass-splitting@4"): "the column topples at 4 iterations (top 811.7 mm in 10 s)",
+    # serial PGS's sway grows at 2 and 4 iterations (tests/test_solver_robustness.py); at 8-30 it stands
+    # since a Gauss-Seidel pass starts each manifold at its next point every substep (visit_order.visited_point;
+    # it swayed 22-26 mm there with one fixed order)
+    ("stack_20", "pgs@4"): "the column leans 18.1 mm in 10 s at 4 iterations with serial PGS (441.5 mm before a "
+                           "face resisted rocking more stiffly than its capped spring; criterion 10 mm)",
     # the price of that order, 2026-11-26: the card house's top pair, whose feet slide 6-10 mm in the first
     # second at 4 iterations with either order, keeps sliding when the order turns (docs/method-notes.md)
     ("leaning_planks", "pgs@4"): "the card house collapses at 4 iterations with serial PGS (a card moves 1.6 m; "

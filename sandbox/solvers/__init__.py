@@ -90,6 +90,15 @@ class SolverInfo:
         return None
 
     @property
+    def stiffens_rocking(self) -> bool:
+        """Its rows the stability limit caps may resist a face's rocking more stiffly than its
+        compression (Settings.contact_rocking_stiffness): every schedule but block mass splitting,
+        whose block is a whole manifold solved in place and whose limit counts manifolds, not
+        points. With it, measured: the 27-box block rang at 2 iterations (mean KE 0.133 J) and the
+        1:100 column tipped at 4 (426 mm), both standing without it."""
+        return not (self.combine == "split" and self.block == "manifold")
+
+    @property
     def needs_coloring(self) -> bool:
         """The schedule colours the manifolds every step (and reports its colour count)."""
         return self.visit == "colored"

@@ -8,7 +8,8 @@ bias ``b = rate x penetration``, ``rate = omega / (2 zeta + h omega)`` and compl
 deflects ``F K / omega^2`` at rest.
 
 Three things set a row's omega, in this order (and a fourth, the preload, carries what the
-third leaves of the load):
+third leaves of the load; a fifth, the rocking share, gives back to a face's tilt what the third
+took):
 
 1. ``Settings.contact_hertz``, the softness asked for (capped at a quarter of the substep
    rate, as Box2D does);
@@ -53,6 +54,14 @@ spring's 0.25 s average the 1:1000 heavy-on-light column rocked by 0.3 m at 15 i
 springs, divided by ``contact_preload_lag``. It reads the body's support shared equally among
 its support points, never the row's own impulse (the load-split argument above; a preload that
 followed each point's own warm start threw the pyramid apart).
+
+The rocking share: the preload holds a face's load, not its tilt, so a capped spring is also a
+soft hinge, and a tall column on soft hinges buckles under its own weight (P-Delta) however
+stable the solve: a 20-box column needs omega >= ~270 rad/s, mass splitting at 8 iterations may
+carry 193. A capped row therefore reads, for its push-out, its depth beyond its manifold's mean
+depth up to ``rocking`` times over (rocking_share, rows.bias_push): a face keeps the capped
+spring in compression and resists turning up to 1 + ``Settings.contact_rocking_stiffness`` times
+as stiffly (docs/method-notes.md, "The nudged column at 8 iterations").
 """
 
 import math
@@ -63,8 +72,8 @@ from ..formulation import PAPER, baumgarte_rate
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
  UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z, PRELOAD, PRELOAD_LAG,
- RELAX_PUSH, OVERLAP_PUSH, SPLIT_BOUND) = range(23)
-PARAM_COUNT = 23
+ RELAX_PUSH, OVERLAP_PUSH, SPLIT_BOUND, ROCKING) = range(24)
+PARAM_COUNT = 24
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
 deflection [1], the support average's blend per step [1], the step [s], the up
@@ -77,17 +86,19 @@ that earns a substep a second relax sweep [m/s] (Settings.relax_push_speed; 0: n
 the paper formulation, which has no relax sweeps), the push-out cap of a pair found overlapping
 [m/s] (Settings.overlap_push_speed), and the relaxation mass splitting's convergence bound takes
 [1] (Settings.split_relaxation; 1, the paper's plain average, under the paper formulation), which
-projected Jacobi's global factor takes for its busiest body (mass_splitting.py)."""
+projected Jacobi's global factor takes for its busiest body (mass_splitting.py), and the most a
+row's rocking stiffness may exceed its capped spring [1] (Settings.contact_rocking_stiffness)."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
 
 
 
-def row_params(settings, h: float, sweeps: int, dt: float, gravity) -> list[float]:
+def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: bool = True) -> list[float]:
     """This step's ``Rows.params`` values from ``settings`` for substeps of ``h`` [s] with
     ``sweeps`` biased and as many relax sweeps each, in steps of ``dt`` [s], under ``gravity``
-    [m/s^2] (rows.upload_row_params stores them)."""
+    [m/s^2] (rows.upload_row_params stores them); ``rocking``: the schedule stiffens a face's
+    rocking (SolverInfo.stiffens_rocking)."""
 
     values = [0.0] * PARAM_COUNT
     values[INV_H] = 1.0 / h
@@ -111,6 +122,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity) -> list[floa
     values[RELAX_PUSH] = relax_push_limit(settings)
     values[OVERLAP_PUSH] = settings.overlap_push_speed
     values[SPLIT_BOUND] = settings.split_relaxation if settings.formulation != PAPER else 1.0
+    values[ROCKING] = settings.contact_rocking_stiffness if rocking else 0.0
     return values
 
 
@@ -128,16 +140,32 @@ def params_gravity(rows: ti.template()) -> ti.math.vec3:
 
 
 @ti.func
-def row_omega(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, size: ti.f32) -> ti.f32:
-    """omega [rad/s] of a row with unsplit response ``k_true``, the schedule's ``k_split``,
-    averaged normal force ``load`` [N] and pair size ``size`` [m] (module docstring)."""
+def row_omega(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, size: ti.f32):
+    """(omega, the omega asked for before the stability limit) [rad/s] of a row with unsplit
+    response ``k_true``, the schedule's ``k_split``, averaged normal force ``load`` [N] and pair
+    size ``size`` [m] (module docstring)."""
     omega = params[OMEGA]
     deflection = params[DEFLECTION] * size
     if deflection > 0.0 and load > 0.0:
         omega = ti.max(omega, ti.sqrt(load * k_true / deflection))
+    wanted = omega
     if params[STIFFNESS_LIMIT] > 0.0:
         omega = ti.min(omega, params[STIFFNESS_LIMIT] * ti.sqrt(k_true / k_split) * params[INV_H])
-    return omega
+    return omega, wanted
+
+
+@ti.func
+def rocking_share(params: ti.template(), omega: ti.f32, wanted: ti.f32) -> ti.f32:
+    """alpha [1]: a row's push-out reads its depth d as d + alpha (d - the mean depth of its
+    manifold's touching points) (rows.bias_push), which leaves a face's compression on the capped
+    spring and makes its rocking 1 + alpha times stiffer: up to the stiffness the limit took away,
+    (wanted / omega)^2 - 1, and at most ``Settings.contact_rocking_stiffness``. 0 where the limit
+    did not cap the row. Why a column needs it, and why not a higher limit instead: the
+    setting's docstring."""
+    share = 0.0
+    if omega > 0.0 and wanted > omega:
+        share = ti.min(params[ROCKING], (wanted / omega) ** 2 - 1.0)
+    return share
 
 
 @ti.func
@@ -152,20 +180,23 @@ def spring(params: ti.template(), omega: ti.f32, k_true: ti.f32):
 @ti.func
 def row_spring(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, slow_load: ti.f32,
                size: ti.f32):
-    """(bias rate [1/s], compliance gamma, preload [N s]) of a normal row: the soft step's
-    spring with the preload that carries ``slow_load`` [N] beyond what the spring holds within
-    the deflection, or under the paper formulation a rigid row (gamma 0, no preload) whose bias
-    removes ``baumgarte`` of the depth per step."""
+    """(bias rate [1/s], compliance gamma, preload [N s], rocking share [1]) of a normal row: the
+    soft step's spring with the preload that carries ``slow_load`` [N] beyond what the spring holds
+    within the deflection and the face's rocking stiffness (rocking_share), or under the paper
+    formulation a rigid row (gamma 0, no preload, no rocking share) whose bias removes
+    ``baumgarte`` of the depth per step."""
     rate = params[BAUMGARTE_RATE]
     gamma = 0.0
     preload = 0.0
+    rocking = 0.0
     if rate <= 0.0:
-        omega = row_omega(params, k_true, k_split, load, size)
+        omega, wanted = row_omega(params, k_true, k_split, load, size)
         rate, gamma = spring(params, omega, k_true)
+        rocking = rocking_share(params, omega, wanted)
         if params[DEFLECTION] > 0.0:
             held = omega * omega * params[DEFLECTION] * size / k_true  # [N] the spring's force at the deflection
             preload = params[PRELOAD] * ti.max(slow_load - held, 0.0) / params[INV_H]
-    return rate, gamma, preload
+    return rate, gamma, preload, rocking
 
 
 @ti.func

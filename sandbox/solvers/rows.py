@@ -90,6 +90,7 @@ class Rows:
         self.rate = ti.field(ti.f32, c)  # [1/s] the normal row's bias rate (contact_spring.py)
         self.gamma = ti.field(ti.f32, c)  # the normal row's compliance gamma = K / c
         self.preload = ti.field(ti.f32, c)  # [N s] impulse per substep the normal row carries rigidly (contact_spring.py)
+        self.rocking = ti.field(ti.f32, c)  # [1] how much its depth beyond its manifold's counts (contact_spring.rocking_share)
         self.lam_roll = ti.Vector.field(3, ti.f32, c)  # [N m s] torsional (about n) and rolling (t1, t2) impulses
         # with rolling friction only (respond_row): s I^-1 of each body, 1 / K~ of the angular rows (n, t1, t2)
         self.roll_resp_a = ti.Matrix.field(3, 3, ti.f32, c)
@@ -187,14 +188,33 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
 
 
 @ti.func
+def touching_depth(rows: ti.template(), c: ti.template(), q: ti.i32) -> ti.f32:
+    """[m] The mean separation of the touching points (separation <= 0 as the biased sweep reads
+    it) of point q's manifold; a point hovering above the face does not count."""
+    m = c.manifold[q]
+    total = 0.0
+    count = 0
+    for k in range(c.m_start[m], c.m_start[m] + c.m_count[m]):
+        if rows.sep_now[k] <= 0.0:
+            total += rows.sep_now[k]
+            count += 1
+    return total / ti.cast(ti.max(count, 1), ti.f32)
+
+
+@ti.func
 def bias_push(rows: ti.template(), c: ti.template(), q: ti.i32, s: ti.f32) -> ti.f32:
     """[m/s] The biased sweep's target of penetrating point q (separation ``s`` < 0): the
     spring's push-out, negative, at most ``max_push_speed``, and at most ``overlap_push_speed``
-    while the pair is one found overlapping (manifold_cache.py)."""
+    while the pair is one found overlapping (manifold_cache.py). A row the stability limit capped
+    reads its depth beyond its manifold's mean up to ``rocking`` times over: a face resists
+    rocking more stiffly than the capped spring (contact_spring.rocking_share)."""
     cap = rows.params[MAX_PUSH]
     if c.overlap[q]:
         cap = ti.min(cap, rows.params[OVERLAP_PUSH])
-    return ti.max(rows.rate[q] * ti.min(s + c.slop[q], 0.0), -cap)
+    depth = s
+    if rows.rocking[q] > 0.0:
+        depth = s + rows.rocking[q] * (s - touching_depth(rows, c, q))
+    return ti.max(rows.rate[q] * ti.min(depth + c.slop[q], 0.0), -cap)
 
 
 @ti.func
@@ -280,10 +300,11 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     k = sa * rows.k_a[q] + sb * rows.k_b[q]
     k_true = rows.k_a[q][0] + rows.k_b[q][0]
     load, slow_load = supported_load(rows.params, c, bodies, q)
-    rate, gamma, preload = row_spring(rows.params, k_true, k[0], load, slow_load, c.size[q])
+    rate, gamma, preload, rocking = row_spring(rows.params, k_true, k[0], load, slow_load, c.size[q])
     rows.rate[q] = rate
     rows.gamma[q] = gamma
     rows.preload[q] = preload
+    rows.rocking[q] = rocking
     rows.inv_k[q] = 1.0 / k
     rows.inv_k_soft[q] = 1.0 / (k[0] + gamma)
     if ti.static(friction & ROLLING):  # the angular rows' responses (rolling.solve_rolling)
