@@ -68,7 +68,7 @@ class Settings:
     (F K~ h^2 / (S kappa^2)): few iterations sag, they never fly. 0 turns the limit off
     (benchmarks/stiffness_limit.py scans the unlimited springs)."""
 
-    contact_rocking_stiffness: float = 1.0
+    contact_rocking_stiffness: float = 1.5
     """[1] How much stiffer than its capped spring a contact face is against rocking, at most:
     where the stability limit caps a row's spring below the one asked for, the row's push-out
     reads its depth beyond the mean depth of its manifold's touching points up to this many
@@ -77,10 +77,12 @@ class Settings:
     keeps the capped spring. Why: a tall column on springs buckles under its own weight
     (P-Delta) when they are too soft in rotation, however stable the solve; a 20-box column
     needs omega >= ~270 rad/s and mass splitting at 8 iterations may carry only 193
-    (benchmarks/column_buckling.py; docs/method-notes.md, "The nudged column"). Raising the
-    limit instead rings compressed stacks and drops the card house. Rows the limit does not
-    cap are untouched (PGS at 8 iterations and more, most rows at 15), and so is block mass
-    splitting (SolverInfo.stiffens_rocking says why). 0 turns it off."""
+    (benchmarks/column_buckling.py; docs/method-notes.md, "The nudged column at 8
+    iterations"). 1.0 (omega x 1.41 in rocking) only slowed that column's fall (1 m at 36 s);
+    1.25 and 1.5 hold it through 40 s. Raising the limit instead rings compressed stacks and
+    drops the card house. Rows the limit does not cap are untouched (PGS at 8 iterations and
+    more, most rows at 15), and so is block mass splitting (SolverInfo.stiffens_rocking says
+    why). 0 turns it off."""
 
     contact_damping_ratio: float = 10.0
     """[1] Damping ratio of that spring. Heavily over-damped (10) so a correction
