@@ -90,7 +90,7 @@ class Rows:
         self.rate = ti.field(ti.f32, c)  # [1/s] the normal row's bias rate (contact_spring.py)
         self.gamma = ti.field(ti.f32, c)  # the normal row's compliance gamma = K / c
         self.preload = ti.field(ti.f32, c)  # [N s] impulse per substep the normal row carries rigidly (contact_spring.py)
-        self.rocking = ti.field(ti.f32, c)  # [1] how much its depth beyond its manifold's counts (contact_spring.rocking_share)
+        self.rocking = ti.field(ti.f32, c)  # [1] extra weight of its depth beyond its face's mean (rocking_share)
         self.lam_roll = ti.Vector.field(3, ti.f32, c)  # [N m s] torsional (about n) and rolling (t1, t2) impulses
         # with rolling friction only (respond_row): s I^-1 of each body, 1 / K~ of the angular rows (n, t1, t2)
         self.roll_resp_a = ti.Matrix.field(3, 3, ti.f32, c)
