@@ -78,8 +78,9 @@ class Settings:
     (P-Delta) when they are too soft in rotation, however stable the solve; a 20-box column
     needs omega >= ~270 rad/s and mass splitting at 8 iterations may carry only 193
     (benchmarks/column_buckling.py; docs/method-notes.md, "The nudged column at 8
-    iterations"). 1.0 (omega x 1.41 in rocking) only slowed that column's fall (1 m at 36 s);
-    1.25 and 1.5 hold it through 40 s. Raising the limit instead rings compressed stacks and
+    iterations"). The column model (benchmarks/stiffness_limit.py buckling) puts its critical
+    spring at 283 rad/s about a face's middle, i.e. this above 1.15: 1.0 (273 rad/s) only slowed
+    that column's fall (1 m at 36 s), 1.25 and 1.5 hold it through 40 s. Raising the limit instead rings compressed stacks and
     drops the card house. Rows the limit does not cap are untouched (PGS at 8 iterations and
     more, most rows at 15), and so is block mass splitting (SolverInfo.stiffens_rocking says
     why). 0 turns it off."""
