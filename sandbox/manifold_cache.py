@@ -22,7 +22,7 @@ A body put in the world overlapping another (placed so by the scene, dropped or 
 it: deeper than a loaded contact rests, ``overlap_depth``, when the first narrowphase after its
 placement finds the pair) marks that pair ``overlap`` until it comes out to that depth; the mark
 rides with the pair from step to step (``carry_overlap``), and its rows push out no faster than
-``Settings.overlap_push_speed`` (solvers/rows.py, bias_push). Contacts that arrive as gaps and
+``Settings.overlap_push_speed`` (solvers/normal_target.py, bias_push). Contacts that arrive as gaps and
 are pressed in by an impact or a load are never marked, nor those a rebuilt world (an edit, grown
 buffers, a restored good state) finds again, but for the marked ones, whose bodies count as placed
 again (edits.Edits.keep_overlaps): their depth is the springs' physics.

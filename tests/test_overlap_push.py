@@ -1,5 +1,5 @@
 """A pair found already overlapping pushes out no faster than ``Settings.overlap_push_speed``
-(sandbox/manifold_cache.py marks it, solvers/rows.py bias_push caps it); contacts that arrive
+(sandbox/manifold_cache.py marks it, solvers/normal_target.py bias_push caps it); contacts that arrive
 as speculative gaps and are pressed in by an impact are never marked, nor are the resting
 contacts of a world rebuilt around a settled stack."""
 

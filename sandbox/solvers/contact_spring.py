@@ -59,7 +59,7 @@ The rocking share: the preload holds a face's load, not its tilt, so a capped sp
 soft hinge, and a tall column on soft hinges buckles under its own weight (P-Delta) however
 stable the solve: a 20-box column needs omega >= ~270 rad/s, mass splitting at 8 iterations may
 carry 193. A capped row therefore reads, for its push-out, its depth beyond its manifold's mean
-depth up to ``rocking`` times over (rocking_share, rows.bias_push): a face keeps the capped
+depth up to ``rocking`` times over (rocking_share, normal_target.bias_push): a face keeps the capped
 spring in compression and resists turning up to 1 + ``Settings.contact_rocking_stiffness`` times
 as stiffly (docs/method-notes.md, "The nudged column at 8 iterations").
 """
@@ -157,7 +157,7 @@ def row_omega(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f
 @ti.func
 def rocking_share(params: ti.template(), omega: ti.f32, wanted: ti.f32) -> ti.f32:
     """alpha [1]: a row's push-out reads its depth d as d + alpha (d - the mean depth of its
-    manifold's touching points) (rows.bias_push), which leaves a face's compression on the capped
+    manifold's touching points) (normal_target.bias_push), which leaves a face's compression on the capped
     spring and makes its rocking 1 + alpha times stiffer: up to the stiffness the limit took away,
     (wanted / omega)^2 - 1, and at most ``Settings.contact_rocking_stiffness``. 0 where the limit
     did not cap the row. Why a column needs it, and why not a higher limit instead: the

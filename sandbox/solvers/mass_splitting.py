@@ -62,7 +62,8 @@ from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, L
                              RESTITUTION_THRESHOLD, SPLIT_BOUND, STEP_DT, support_push)
 from .impact_carry import clamp_impact_carry
 from .rolling import rolling_impulse
-from .rows import BIASED, ROLLING, point_impulse, pushes_fast, solve_point
+from .normal_target import pushes_fast
+from .rows import BIASED, ROLLING, point_impulse, solve_point
 from .split_scales import block_weights
 from .visit_order import gauss_seidel_block
 
@@ -373,7 +374,7 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
                 mode: ti.template(), friction: ti.template(), then_warm: ti.i32, k: ti.i32, substep: ti.i32) -> ti.i32:
     """Block k solved on its own copies of its bodies' velocities (read from before the
     sweep); the changes, weighted, go to its two slots. Returns 1 when a biased row of it
-    pushes fast (rows.pushes_fast: its substep gets a second relax sweep), else 0."""
+    pushes fast (normal_target.pushes_fast: its substep gets a second relax sweep), else 0."""
     start, count, a, b = block_range(c, k, kind)
     va0, wa0 = bodies.lin_vel[a], bodies.ang_vel[a]
     vb0, wb0 = bodies.lin_vel[b], bodies.ang_vel[b]
@@ -418,7 +419,7 @@ def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
     impulses are final for this substep, so its slots also carry the next substep's warm
     start, and the gather adds the next substep's gravity: one block pass and two body
     passes fewer per substep than a separate gravity pass and warm-start pass. A biased
-    sweep sets ``rows.fast_push`` when a row pushes fast (rows.pushes_fast; every block that
+    sweep sets ``rows.fast_push`` when a row pushes fast (normal_target.pushes_fast; every block that
     finds one writes the same 1). ``active`` = 0 runs both loops zero times (they stay
     top-level, parallel loops)."""
     for k in range(s.block_count[None] * active):
