@@ -29,7 +29,7 @@ import taichi as ti
 from .awake import EVERY, body_id, body_total
 from .backend import serialize_light_loops
 from .field_upload import write_rows
-from .math3d import quat_to_mat
+from .math3d import mat_mul, quat_to_mat
 
 vec3 = ti.math.vec3
 
@@ -137,7 +137,7 @@ class Bodies:
 @ti.func
 def update_body_inertia(b: ti.template(), i: ti.i32):
     r = quat_to_mat(b.rot[i])
-    b.inv_inertia_world[i] = r @ b.inv_inertia[i] @ r.transpose()
+    b.inv_inertia_world[i] = mat_mul(mat_mul(r, b.inv_inertia[i]), r.transpose())
 
 
 @ti.func

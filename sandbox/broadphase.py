@@ -23,7 +23,7 @@ import taichi as ti
 from .awake import shape_id, shape_total
 from .backend import serialize_light_loops
 from .integrate import ERR_BOUNDS
-from .math3d import quat_rotate, quat_to_mat
+from .math3d import dot, mat_mul, mat_vec, norm, quat_rotate, quat_to_mat
 from .prefix_sum import Scanner, exclusive_scan, sort_range
 from .static_grid import hash_table_size
 
@@ -114,8 +114,8 @@ def shape_world_aabb(shapes: ti.template(), bodies: ti.template(), i: ti.i32, ma
     """World AABB of shape i grown by ``margin`` on every side."""
     b = shapes.body[i]
     q_body = bodies.rot[b]
-    r = quat_to_mat(q_body) @ quat_to_mat(shapes.local_rot[i])
-    center = bodies.pos[b] + quat_rotate(q_body, shapes.local_pos[i]) + r @ shapes.aabb_center[i]
+    r = mat_mul(quat_to_mat(q_body), quat_to_mat(shapes.local_rot[i]))
+    center = bodies.pos[b] + quat_rotate(q_body, shapes.local_pos[i]) + mat_vec(r, shapes.aabb_center[i])
     h = shapes.aabb_half[i]
     ext = vec3(0.0)
     for k in ti.static(range(3)):
@@ -142,8 +142,8 @@ def swept_distance(shapes: ti.template(), bodies: ti.template(), i: ti.i32, h: t
     if ti.static(speculative >= 0.0):
         b = shapes.body[i]
         if bodies.inv_mass[b] > 0.0:
-            r = shapes.local_pos[i].norm() + shapes.bound[i]
-            speed = bodies.lin_vel[b].norm() + bodies.ang_vel[b].norm() * r
+            r = norm(shapes.local_pos[i]) + shapes.bound[i]
+            speed = norm(bodies.lin_vel[b]) + norm(bodies.ang_vel[b]) * r
             if speed > speculative:
                 d = h * speed
     return d
@@ -367,7 +367,7 @@ def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i
         n = shapes.plane_normal[p]
         center = 0.5 * (lo + hi)
         half = 0.5 * (hi - lo)
-        lowest = n.dot(center) - (ti.abs(n[0]) * half[0] + ti.abs(n[1]) * half[1] + ti.abs(n[2]) * half[2])
+        lowest = dot(n, center) - (ti.abs(n[0]) * half[0] + ti.abs(n[1]) * half[1] + ti.abs(n[2]) * half[2])
         if lowest <= shapes.plane_offset[p]:
             _emit(bp, i, -1 - p, base, found, write)
             found += 1

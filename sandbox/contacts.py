@@ -16,7 +16,7 @@ import taichi as ti
 
 from .awake import note_touch, shape_id, shape_total
 from .backend import serialize_light_loops
-from .math3d import quat_mul, quat_rotate
+from .math3d import dot, quat_mul, quat_rotate
 from .narrowphase import collide_kinds
 from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose
 from .broadphase import swept_distance
@@ -228,7 +228,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
                 c.normal[q] = c.raw_normal[p]
                 c.point[q] = c.raw_point[s]
                 # the narrowphase saw float32 positions; the bodies sit pos_rem further on
-                c.sep[q] = c.raw_sep[s] + c.raw_normal[p].dot(bodies.pos_rem[bb] - bodies.pos_rem[ba])
+                c.sep[q] = c.raw_sep[s] + dot(c.raw_normal[p], bodies.pos_rem[bb] - bodies.pos_rem[ba])
                 c.friction[q] = mu
                 c.restitution[q] = e
                 c.slop[q] = c.raw_slop[p]

@@ -27,7 +27,8 @@ import taichi as ti
 
 from .awake import body_id, body_total
 from .backend import serialize_light_loops
-from .math3d import any_nonfinite3, quat_mul, quat_normalize, quat_rotate, quat_rotate_inv, two_sum
+from .math3d import (any_nonfinite3, cross, mat_mul, mat_vec, quat_mul, quat_normalize, quat_rotate, quat_rotate_inv,
+                     two_sum)
 
 vec3 = ti.math.vec3
 vec4 = ti.math.vec4
@@ -117,23 +118,23 @@ def rotate_free(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia: ti.te
 
 @ti.func
 def _rotate_gyroscopic(q: vec4, omega: vec3, inertia: ti.template(), inv_inertia: ti.template(), h: ti.f32):
-    l0 = inertia @ quat_rotate_inv(q, omega)
-    w0 = inv_inertia @ l0
+    l0 = mat_vec(inertia, quat_rotate_inv(q, omega))
+    w0 = mat_vec(inv_inertia, l0)
     w = w0
     tol = NEWTON_TOLERANCE * NEWTON_TOLERANCE * w0.norm_sqr()
     for _ in range(NEWTON_STEPS):
         # G premultiplied by I^-1 so the system is O(1) whatever the body's size: a 1 mm
         # cube's inertia (~1e-13 kg m^2) would underflow a float32 determinant
-        iw = inertia @ w
-        g = w + 0.5 * h * (inv_inertia @ w.cross(iw)) - w0
+        iw = mat_vec(inertia, w)
+        g = w + 0.5 * h * mat_vec(inv_inertia, cross(w, iw)) - w0
         if g.norm_sqr() <= tol:
             break
-        jac = ti.Matrix.identity(ti.f32, 3) + 0.5 * h * (inv_inertia @ (_skew(w) @ inertia - _skew(iw)))
-        w -= jac.inverse() @ g
+        jac = ti.Matrix.identity(ti.f32, 3) + 0.5 * h * mat_mul(inv_inertia, mat_mul(_skew(w), inertia) - _skew(iw))
+        w -= mat_vec(jac.inverse(), g)
     step = quat_normalize(vec4(1.0, 0.5 * h * w[0], 0.5 * h * w[1], 0.5 * h * w[2]))
     l1 = quat_rotate_inv(step, l0)
     q1 = quat_normalize(quat_mul(q, step))
-    return q1, quat_rotate(q1, inv_inertia @ l1)
+    return q1, quat_rotate(q1, mat_vec(inv_inertia, l1))
 
 
 @ti.func

@@ -43,7 +43,7 @@ import taichi as ti
 
 from .awake import shape_id, shape_total
 from .backend import serialize_light_loops
-from .math3d import quat_conj, quat_mul, quat_rotate, quat_rotate_inv
+from .math3d import dot, norm, quat_conj, quat_mul, quat_rotate, quat_rotate_inv
 from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose, manifold_point, relative_pose
 
 vec3 = ti.math.vec3
@@ -138,7 +138,7 @@ def find_reusable(cache: ti.template(), found: ti.i32, a: ShapePose, b: ShapePos
             if moved2 < max_d2 and sin_half < max_sin_half:
                 slot = found
         elif cache.gap[old, found] > 0.0:
-            rounding = 1e-6 * (a.pos.norm() + p_ba.norm() + b.bound)
+            rounding = 1e-6 * (norm(a.pos) + norm(p_ba) + b.bound)
             closer = ti.sqrt(moved2) + 2.0 * sin_half * b.bound * (1.0 + 1e-3) + rounding
             if cache.gap[old, found] - closer > margin:
                 slot = found
@@ -161,7 +161,7 @@ def reuse_manifold(cache: ti.template(), o: ti.i32, p: ti.i32, a: ShapePose, b: 
         mid = a.pos + ra + 0.5 * gap
         for c in ti.static(range(3)):
             m.points[k, c] = mid[c]
-        m.separation[k] = n.dot(gap)
+        m.separation[k] = dot(n, gap)
         m.feature[k] = cache.feature[old, so]
         sp = MAX_POINTS * p + k
         cache.on_a[cur, sp] = cache.on_a[old, so]

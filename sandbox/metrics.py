@@ -17,7 +17,7 @@ the simulation, which stays bitwise repeatable.
 import numpy as np
 import taichi as ti
 
-from .math3d import quat_rotate_inv
+from .math3d import dot, mat_vec, quat_rotate_inv
 
 KE, MAX_PEN, SUM_PEN, RES_SQ_SUM, RES_MAX_SQ = range(5)
 
@@ -36,7 +36,7 @@ def compute_metrics(out: ti.template(), bodies: ti.template(), c: ti.template(),
         if bodies.inv_mass[i] > 0.0:
             v = bodies.lin_vel[i]
             w = quat_rotate_inv(bodies.rot[i], bodies.ang_vel[i])
-            ke = 0.5 * v.norm_sqr() / bodies.inv_mass[i] + 0.5 * w.dot(bodies.inertia[i] @ w)
+            ke = 0.5 * v.norm_sqr() / bodies.inv_mass[i] + 0.5 * dot(w, mat_vec(bodies.inertia[i], w))
             ti.atomic_add(out.values[KE], ke)
     for q in range(c.count[None]):
         pen = ti.max(-c.sep[q], 0.0)

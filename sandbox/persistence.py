@@ -23,6 +23,7 @@ import taichi as ti
 from .awake import shape_id, shape_total
 from .backend import serialize_light_loops
 from .field_upload import write_rows
+from .math3d import dot
 
 vec3 = ti.math.vec3
 
@@ -79,7 +80,7 @@ def match_contact(hist: ti.template(), c: ti.template(), rows: ti.template(), ma
     lam = vec3(0.0)
     if best >= 0:
         lt = hist.lam_t[best]
-        lam = warm_factor * vec3(hist.lam_n[best], lt.dot(rows.t1[q]), lt.dot(rows.t2[q]))
+        lam = warm_factor * vec3(hist.lam_n[best], dot(lt, rows.t1[q]), dot(lt, rows.t2[q]))
     rows.lam[q] = lam
 
 

@@ -27,7 +27,7 @@ exact ties; the choices stay deterministic.
 import numpy as np
 import taichi as ti
 
-from ..math3d import quat_to_mat
+from ..math3d import cross, dot, quat_to_mat
 from ..polytope import box_polytope
 from .tolerances import EDGE_PARALLEL_SIN, NO_AXIS
 
@@ -127,14 +127,14 @@ def box_edge_query(r: ti.template(), ha: vec3, hb: vec3, p_ba: vec3):
         for k in ti.static(range(3)):  # A's edge direction
             ek = vec3(0.0)
             ek[k] = 1.0
-            c = ek.cross(u)
+            c = cross(ek, u)
             n = c.norm()
             if n > EDGE_PARALLEL_SIN:
                 d = c / n
-                if d.dot(p_ba) < 0.0:
+                if dot(d, p_ba) < 0.0:
                     d = -d
-                db = vec3(d.dot(vec3(r[0, 0], r[1, 0], r[2, 0])), d.dot(vec3(r[0, 1], r[1, 1], r[2, 1])),
-                          d.dot(vec3(r[0, 2], r[1, 2], r[2, 2])))  # d in B's frame
+                db = vec3(dot(d, vec3(r[0, 0], r[1, 0], r[2, 0])), dot(d, vec3(r[0, 1], r[1, 1], r[2, 1])),
+                          dot(d, vec3(r[0, 2], r[1, 2], r[2, 2])))  # d in B's frame
                 k1 = ti.static((k + 1) % 3)
                 k2 = ti.static((k + 2) % 3)
                 l1 = ti.static((l + 1) % 3)
@@ -143,7 +143,7 @@ def box_edge_query(r: ti.template(), ha: vec3, hb: vec3, p_ba: vec3):
                 if d[k1] != 0.0 and d[k2] != 0.0 and db[l1] != 0.0 and db[l2] != 0.0:
                     ra = ti.abs(d[k1]) * ha[k1] + ti.abs(d[k2]) * ha[k2]
                     rb = ti.abs(db[l1]) * hb[l1] + ti.abs(db[l2]) * hb[l2]
-                    sep = d.dot(p_ba) - ra - rb
+                    sep = dot(d, p_ba) - ra - rb
                     if sep > best:
                         # A's edge supporting +d, B's edge supporting -d (low ends: bit k / l clear)
                         low_a = ti.select(d[k1] > 0.0, _BIT[k1], 0) + ti.select(d[k2] > 0.0, _BIT[k2], 0)

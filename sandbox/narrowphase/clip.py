@@ -39,7 +39,7 @@ pushes only over itself).
 
 import taichi as ti
 
-from ..math3d import quat_conj, quat_rotate
+from ..math3d import dot, quat_conj, quat_rotate
 from ..shapes import TRIANGLE
 from .manifold import ShapePose, manifold_add
 from .reduce import REDUCE_PASSES, reducer_finish, reducer_needs_pass, reducer_new, reducer_visit
@@ -117,9 +117,9 @@ def _candidates(pool: ti.template(), r: ti.template(), pass_index: ti.i32, buffe
             k = c - ilc - ilc * rlc
             v = pool.vert[pool.loop[rls + k]]
             v_i = _xf(q_ri, p_ri, v)
-            den = n_i.dot(n_r_i)
+            den = dot(n_i, n_r_i)
             if den < -CORNER_MIN_COS:
-                t = (o_i - n_i.dot(v_i)) / den
+                t = (o_i - dot(n_i, v_i)) / den
                 x_i = v_i + n_r_i * t
                 valid = 1
                 for e in range(ilc):
@@ -127,7 +127,7 @@ def _candidates(pool: ti.template(), r: ti.template(), pass_index: ti.i32, buffe
                         valid = 0
                 x = v + n_r * t
                 code = REF_CORNER | k
-        sep = n_r.dot(x) - o_r
+        sep = dot(n_r, x) - o_r
         if valid and sep < margin:
             y = x - n_r * (0.5 * sep)
             if ti.static(buffered):
@@ -168,7 +168,7 @@ def face_contact(pool: ti.template(), m: ti.template(), a: ShapePose, b: ShapePo
     inc = 0
     best = 2.0
     for j in range(pool.face_count[inc_poly]):
-        d = pool.face_normal[fs_i + j].dot(n_r_i)
+        d = dot(pool.face_normal[fs_i + j], n_r_i)
         if d < best - INCIDENT_TIE_COS:
             best = d
             inc = j
@@ -208,7 +208,7 @@ def face_contact(pool: ti.template(), m: ti.template(), a: ShapePose, b: ShapePo
         reducer_finish(r, m, rot_w, pos_w)
     elif support_vert >= 0:
         x = _xf(q_ir, p_ir, pool.vert[pool.vert_start[inc_poly] + support_vert])
-        sep = n_r.dot(x) - o_r
+        sep = dot(n_r, x) - o_r
         # a mesh triangle pushes only over (or at) itself: the fallback must lie in the reference prism
         over_ref = 1
         if b.kind == TRIANGLE:

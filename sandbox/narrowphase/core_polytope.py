@@ -45,7 +45,7 @@ clipping the core to a face (capsule on a face, anything on a triangle) get
 
 import taichi as ti
 
-from ..math3d import quat_rotate, quat_rotate_inv
+from ..math3d import cross, dot, norm, quat_rotate, quat_rotate_inv
 from ..shapes import CAPSULE, TRIANGLE
 from .manifold import Manifold, ShapePose, manifold_add
 from .segments import closest_on_segment, closest_segments
@@ -63,15 +63,15 @@ def _support(pool: ti.template(), poly: ti.i32, u: vec3) -> ti.f32:
     hi = -3.0e38
     vs = pool.vert_start[poly]
     for j in range(pool.vert_count[poly]):
-        hi = ti.max(hi, u.dot(pool.vert[vs + j]))
+        hi = ti.max(hi, dot(u, pool.vert[vs + j]))
     return hi
 
 
 @ti.func
 def _in_arc(u: vec3, a: vec3, b: vec3) -> ti.i32:
     """u (perpendicular to the edge) lies on the minor arc from face normal a to face normal b."""
-    w = a.cross(b)
-    return a.cross(u).dot(w) >= 0.0 and u.cross(b).dot(w) >= 0.0
+    w = cross(a, b)
+    return dot(cross(a, u), w) >= 0.0 and dot(cross(u, b), w) >= 0.0
 
 
 @ti.func
@@ -87,7 +87,7 @@ def collide_core_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, margi
     c0 = c - h
     c1 = c + h
     dseg = c1 - c0
-    is_segment = dseg.dot(dseg) > LENGTH_EPS2
+    is_segment = dot(dseg, dseg) > LENGTH_EPS2
     fs = pool.face_start[poly]
     es = pool.edge_start[poly]
     vs = pool.vert_start[poly]
@@ -99,16 +99,16 @@ def collide_core_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, margi
     g_other, id_other, u_other, cp_other = NO_AXIS, 0, vec3(0.0, 0.0, 1.0), c0
     if b.kind == TRIANGLE:
         # one-sided: the front normal, over the triangle only, and nothing once the centre is behind
-        if pool.face_normal[fs].dot(c) - pool.face_offset[fs] >= 0.0:
+        if dot(pool.face_normal[fs], c) - pool.face_offset[fs] >= 0.0:
             u = pool.face_normal[fs]
             clip_face = 0
     else:
         for i in range(pool.face_count[poly]):
             n = pool.face_normal[fs + i]
             cp = c0
-            if n.dot(c1) < n.dot(c0):
+            if dot(n, c1) < dot(n, c0):
                 cp = c1
-            g = n.dot(cp) - pool.face_offset[fs + i]
+            g = dot(n, cp) - pool.face_offset[fs + i]
             if g > g_face:
                 g_face, i_face, cp_face = g, i, cp
 
@@ -119,9 +119,9 @@ def collide_core_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, margi
             edge = p1 - p0
             cs, ce = closest_segments(c0, c1, p0, p1)
             if is_segment:
-                w = dseg.cross(edge)
-                l = w.norm()
-                if l > EDGE_PARALLEL_SIN * ti.sqrt(dseg.dot(dseg) * edge.dot(edge)):
+                w = cross(dseg, edge)
+                l = norm(w)
+                if l > EDGE_PARALLEL_SIN * ti.sqrt(dot(dseg, dseg) * dot(edge, edge)):
                     w /= l
                     ifc = pool.edge_face[es + e]
                     na = pool.face_normal[ifc[0]]
@@ -129,15 +129,15 @@ def collide_core_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, margi
                     if not _in_arc(w, na, nb):
                         w = -w
                     if _in_arc(w, na, nb):
-                        g = w.dot(c0) - w.dot(p0)  # w is perpendicular to the segment
+                        g = dot(w, c0) - dot(w, p0)  # w is perpendicular to the segment
                         if g > g_other:
                             g_other, id_other, u_other, cp_other = g, (EDGE_ARC << 8) | e, w, cs
             # direction from the edge's closest point to the core
             w = cs - ce
-            l = w.norm()
+            l = norm(w)
             if l > LENGTH_EPS:
                 w /= l
-                g = ti.min(w.dot(c0), w.dot(c1)) - _support(pool, poly, w)
+                g = ti.min(dot(w, c0), dot(w, c1)) - _support(pool, poly, w)
                 if g > g_other:
                     g_other, id_other, u_other, cp_other = g, (EDGE_CLOSEST << 8) | e, w, cs
 
@@ -145,10 +145,10 @@ def collide_core_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, margi
             v = pool.vert[vs + j]
             cs = closest_on_segment(v, c0, c1)
             w = cs - v
-            l = w.norm()
+            l = norm(w)
             if l > LENGTH_EPS:
                 w /= l
-                g = ti.min(w.dot(c0), w.dot(c1)) - _support(pool, poly, w)
+                g = ti.min(dot(w, c0), dot(w, c1)) - _support(pool, poly, w)
                 if g > g_other:
                     g_other, id_other, u_other, cp_other = g, (VERTEX << 8) | j, w, cs
 
@@ -171,10 +171,10 @@ def collide_core_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, margi
         for k in range(lc):
             v0 = pool.vert[pool.loop[ls + k]]
             v1 = pool.vert[pool.loop[ls + (k + 1) % lc]]
-            s = (v1 - v0).cross(u)  # out of the face (loops are counter-clockwise from outside)
-            s /= ti.max(s.norm(), 1.0e-30)
-            d0 = s.dot(c0 - v0)
-            d1 = s.dot(c1 - v0)
+            s = cross(v1 - v0, u)  # out of the face (loops are counter-clockwise from outside)
+            s /= ti.max(norm(s), 1.0e-30)
+            d0 = dot(s, c0 - v0)
+            d1 = dot(s, c1 - v0)
             # classify with the slack, cut at the plane itself
             if d0 > CLIP_EPS and d1 > CLIP_EPS:
                 lo, hi = 1.0, 0.0
@@ -189,9 +189,9 @@ def collide_core_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, margi
                 if ti.static(end == 1):
                     t = hi
                 x = c0 + t * dseg
-                sep = u.dot(x) - off - r
+                sep = dot(u, x) - off - r
                 # a point core, or a clip down to one point, gives one point
-                if sep < margin and (ti.static(end == 0) or (hi - lo) * dseg.norm() > LENGTH_EPS):
+                if sep < margin and (ti.static(end == 0) or (hi - lo) * norm(dseg) > LENGTH_EPS):
                     manifold_add(m, b.pos + quat_rotate(b.rot, x - u * (r + 0.5 * sep)), sep,
                                  FLAT_BIT | (end << 8) | clip_face)
     if single and m.count == 0:

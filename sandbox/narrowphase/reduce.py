@@ -27,7 +27,7 @@ reduced set comes out as deepest, farthest, third, fourth.
 
 import taichi as ti
 
-from ..math3d import quat_rotate
+from ..math3d import cross, dot, quat_rotate
 from .manifold import MAX_POINTS, manifold_add
 from .tolerances import REDUCE_AREA_EPS
 
@@ -71,7 +71,7 @@ def _row(mat: ti.template(), k: ti.template()) -> vec3:
 @ti.func
 def _area(p0: vec3, p1: vec3, p: vec3, normal: vec3) -> ti.f32:
     """Twice the signed area of triangle (p0, p1, p) seen along ``normal``."""
-    return (p1 - p0).cross(p - p0).dot(normal)
+    return dot(cross(p1 - p0, p - p0), normal)
 
 
 @ti.func
@@ -98,9 +98,9 @@ def reducer_visit(r: ti.template(), pass_index: ti.i32, p: vec3, sep: ti.f32, fe
             _choose(r, 0, p, sep, feature, sep)
     elif pass_index == 1:  # farthest from the deepest, in the contact plane
         d = p - _row(r.chosen, 0)
-        d -= normal * d.dot(normal)
-        if d.dot(d) > r.score[1]:
-            _choose(r, 1, p, sep, feature, d.dot(d))
+        d -= normal * dot(d, normal)
+        if dot(d, d) > r.score[1]:
+            _choose(r, 1, p, sep, feature, dot(d, d))
     elif pass_index == 2:  # largest triangle with those two, either side
         s = _area(_row(r.chosen, 0), _row(r.chosen, 1), p, normal)
         if r.score[1] > REDUCE_AREA_EPS and ti.abs(s) > r.score[2]:

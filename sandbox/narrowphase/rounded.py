@@ -14,7 +14,7 @@ single closest-point contact; all other pairs have one point with id 0.
 
 import taichi as ti
 
-from ..math3d import plane_basis
+from ..math3d import cross, dot, norm, plane_basis
 from .manifold import Manifold, ShapePose, manifold_add
 from .segments import closest_on_segment, closest_segments, core_segment
 from .tolerances import CAPSULE_PARALLEL_SIN, LENGTH_EPS, LENGTH_EPS2
@@ -26,7 +26,7 @@ vec3 = ti.math.vec3
 def _unit_or(v: vec3, fallback: vec3) -> vec3:
     """v normalised, or the fallback when v is too short to have a direction."""
     out = fallback
-    n = v.norm()
+    n = norm(v)
     if n > LENGTH_EPS:
         out = v / n
     return out
@@ -42,7 +42,7 @@ def _perpendicular_towards(axis: vec3, towards: vec3) -> vec3:
     """
     a = _unit_or(axis, vec3(0.0, 0.0, 1.0))
     t1, _t2 = plane_basis(a)
-    w = towards - a * a.dot(towards)
+    w = towards - a * dot(a, towards)
     return _unit_or(w, t1)
 
 
@@ -50,7 +50,7 @@ def _perpendicular_towards(axis: vec3, towards: vec3) -> vec3:
 def _add_pair_point(m: ti.template(), pa: vec3, pb: vec3, n: vec3, ra: ti.f32, rb: ti.f32,
                     margin: ti.f32, feature: ti.i32):
     """Add the contact between core points pa (of a) and pb (of b) along normal n (a to b)."""
-    sep = (pb - pa).dot(n) - ra - rb
+    sep = dot(pb - pa, n) - ra - rb
     if sep < margin:
         manifold_add(m, 0.5 * ((pa + ra * n) + (pb - rb * n)), sep, feature)
 
@@ -58,7 +58,7 @@ def _add_pair_point(m: ti.template(), pa: vec3, pb: vec3, n: vec3, ra: ti.f32, r
 @ti.func
 def collide_plane_sphere(a: ShapePose, b: ShapePose, margin: ti.f32) -> Manifold:
     m = Manifold(count=0, normal=a.normal)
-    _add_pair_point(m, b.pos - a.normal * a.normal.dot(b.pos - a.pos), b.pos, a.normal, 0.0, b.radius, margin, 0)
+    _add_pair_point(m, b.pos - a.normal * dot(a.normal, b.pos - a.pos), b.pos, a.normal, 0.0, b.radius, margin, 0)
     return m
 
 
@@ -68,8 +68,8 @@ def collide_plane_capsule(a: ShapePose, b: ShapePose, margin: ti.f32) -> Manifol
     m = Manifold(count=0, normal=a.normal)
     e0, e1 = core_segment(b.pos, b.rot, b.half_height)
     n = a.normal
-    _add_pair_point(m, e0 - n * n.dot(e0 - a.pos), e0, n, 0.0, b.radius, margin, 0)
-    _add_pair_point(m, e1 - n * n.dot(e1 - a.pos), e1, n, 0.0, b.radius, margin, 1)
+    _add_pair_point(m, e0 - n * dot(n, e0 - a.pos), e0, n, 0.0, b.radius, margin, 0)
+    _add_pair_point(m, e1 - n * dot(n, e1 - a.pos), e1, n, 0.0, b.radius, margin, 1)
     return m
 
 
@@ -107,22 +107,22 @@ def collide_capsule_capsule(a: ShapePose, b: ShapePose, margin: ti.f32) -> Manif
     da = a1 - a0
     db = b1 - b0
     # touching cores: perpendicular to both axes (or to a's) towards b
-    axes_normal = da.cross(db)
-    if axes_normal.dot(b.pos - a.pos) < 0.0:
+    axes_normal = cross(da, db)
+    if dot(axes_normal, b.pos - a.pos) < 0.0:
         axes_normal = -axes_normal
     fallback = _unit_or(axes_normal, _perpendicular_towards(da, b.pos - a.pos))
     n = _unit_or(cb - ca, fallback)
     m = Manifold(count=0, normal=n)
 
-    la2 = da.dot(da)
-    lb2 = db.dot(db)
-    cross2 = axes_normal.dot(axes_normal)
+    la2 = dot(da, da)
+    lb2 = dot(db, db)
+    cross2 = dot(axes_normal, axes_normal)
     parallel = (la2 > LENGTH_EPS2 and lb2 > LENGTH_EPS2
                 and cross2 < CAPSULE_PARALLEL_SIN * CAPSULE_PARALLEL_SIN * la2 * lb2)
     if parallel:
         # clip b's extent to a's: parameters of b's ends along a, intersected with [0, 1]
-        t0 = (b0 - a0).dot(da) / la2
-        t1 = (b1 - a0).dot(da) / la2
+        t0 = dot(b0 - a0, da) / la2
+        t1 = dot(b1 - a0, da) / la2
         lo = ti.max(0.0, ti.min(t0, t1))
         hi = ti.min(1.0, ti.max(t0, t1))
         if (hi - lo) * ti.sqrt(la2) > LENGTH_EPS:

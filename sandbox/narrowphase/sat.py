@@ -36,7 +36,7 @@ See ``polytope.collide_polytope_polytope`` for how the two maxima combine.
 
 import taichi as ti
 
-from ..math3d import quat_conj, quat_rotate
+from ..math3d import cross, dot, norm, quat_conj, quat_rotate
 from .tolerances import EDGE_PARALLEL_SIN, FRONT_MIN_COS, NO_AXIS
 
 vec3 = ti.math.vec3
@@ -72,13 +72,13 @@ def face_query_a(pool: ti.template(), pa: ti.i32, pb: ti.i32, q_ba: vec4, p_ba: 
         lo = 3.0e38
         arg = 0
         for j in range(vc):
-            d = nb.dot(pool.vert[vs + j])
+            d = dot(nb, pool.vert[vs + j])
             if d < lo:
                 lo = d
                 arg = j
-        sep = n.dot(p_ba) + lo - pool.face_offset[fs + i]
+        sep = dot(n, p_ba) + lo - pool.face_offset[fs + i]
         sep_all = ti.max(sep_all, sep)
-        if (tri == 0 or -n.dot(n_tri) > FRONT_MIN_COS) and sep > sep_ok:
+        if (tri == 0 or -dot(n, n_tri) > FRONT_MIN_COS) and sep > sep_ok:
             sep_ok = sep
             face_ok = i
             vert_ok = arg
@@ -97,11 +97,11 @@ def face_query_b(pool: ti.template(), pa: ti.i32, pb: ti.i32, q_ba: vec4, p_ba: 
     vc = pool.vert_count[pa]
     for j in range(pool.face_count[pb]):
         n = quat_rotate(q_ba, pool.face_normal[fs + j])
-        off = pool.face_offset[fs + j] + n.dot(p_ba)
+        off = pool.face_offset[fs + j] + dot(n, p_ba)
         lo = 3.0e38
         arg = 0
         for i in range(vc):
-            d = n.dot(pool.vert[vs + i])
+            d = dot(n, pool.vert[vs + i])
             if d < lo:
                 lo = d
                 arg = i
@@ -117,9 +117,9 @@ def face_query_b(pool: ti.template(), pa: ti.i32, pb: ti.i32, q_ba: vec4, p_ba: 
 @ti.func
 def _edge_axis(e1: vec3, e2: vec3):
     """Unit cross product of two edge directions, and whether it is meaningful (not parallel)."""
-    c = e1.cross(e2)
-    l = c.norm()
-    ok = l > EDGE_PARALLEL_SIN * ti.sqrt(e1.dot(e1) * e2.dot(e2))
+    c = cross(e1, e2)
+    l = norm(c)
+    ok = l > EDGE_PARALLEL_SIN * ti.sqrt(dot(e1, e1) * dot(e2, e2))
     return c / ti.max(l, 1.0e-30), ok
 
 
@@ -145,25 +145,25 @@ def edge_query_solid(pool: ti.template(), pa: ti.i32, pb: ti.i32, q_ba: vec4, p_
         # arcs of the Minkowski difference A - B use B's normals negated
         c = -quat_rotate(q_ba, pool.face_normal[ifb[0]])
         d = -quat_rotate(q_ba, pool.face_normal[ifb[1]])
-        d_x_c = d.cross(c)
+        d_x_c = cross(d, c)
         for ja in range(pool.edge_count[pa]):
             iva = pool.edge_vert[es_a + ja]
             ifa = pool.edge_face[es_a + ja]
             a = pool.face_normal[ifa[0]]
             b = pool.face_normal[ifa[1]]
-            b_x_a = b.cross(a)
-            cba = c.dot(b_x_a)
-            dba = d.dot(b_x_a)
-            adc = a.dot(d_x_c)
-            bdc = b.dot(d_x_c)
+            b_x_a = cross(b, a)
+            cba = dot(c, b_x_a)
+            dba = dot(d, b_x_a)
+            adc = dot(a, d_x_c)
+            bdc = dot(b, d_x_c)
             # Gregorius' IsMinkowskiFace: the arcs AB and CD cross on the unit sphere
             if cba * dba < 0.0 and adc * bdc < 0.0 and cba * bdc > 0.0:
                 p0 = pool.vert[iva[0]]
                 axis, ok = _edge_axis(pool.vert[iva[1]] - p0, q1 - q0)
                 if ok:
-                    if axis.dot(p0 - ca) < 0.0:
+                    if dot(axis, p0 - ca) < 0.0:
                         axis = -axis
-                    sep = axis.dot(q0 - p0)
+                    sep = dot(axis, q0 - p0)
                     if sep > best:
                         best = sep
                         best_a = ja
@@ -187,8 +187,8 @@ def edge_query_triangle(pool: ti.template(), pa: ti.i32, pb: ti.i32, q_ba: vec4,
         ivb = pool.edge_vert[es_b + jb]
         q0 = to_a(q_ba, p_ba, pool.vert[ivb[0]])
         e2 = to_a(q_ba, p_ba, pool.vert[ivb[1]]) - q0
-        out = e2.cross(n_tri)  # in the triangle's plane, perpendicular to the edge
-        if out.dot(q0 - ct) < 0.0:
+        out = cross(e2, n_tri)  # in the triangle's plane, perpendicular to the edge
+        if dot(out, q0 - ct) < 0.0:
             out = -out
         for ja in range(pool.edge_count[pa]):
             iva = pool.edge_vert[es_a + ja]
@@ -196,14 +196,14 @@ def edge_query_triangle(pool: ti.template(), pa: ti.i32, pb: ti.i32, q_ba: vec4,
             a = pool.face_normal[ifa[0]]
             b = pool.face_normal[ifa[1]]
             # A's arc a->b crosses the great circle perpendicular to e2 ...
-            if a.dot(e2) * b.dot(e2) < 0.0:
+            if dot(a, e2) * dot(b, e2) < 0.0:
                 p0 = pool.vert[iva[0]]
                 axis, ok = _edge_axis(pool.vert[iva[1]] - p0, e2)
                 if ok:
                     # ... at the point of the (minor) arc, which faces a + b
-                    if axis.dot(a + b) < 0.0:
+                    if dot(axis, a + b) < 0.0:
                         axis = -axis
                     # B's support towards A (-axis) must be this edge: -axis in its half circle
-                    if -axis.dot(out) > 0.0:
-                        sep_all = ti.max(sep_all, axis.dot(q0 - p0))
+                    if -dot(axis, out) > 0.0:
+                        sep_all = ti.max(sep_all, dot(axis, q0 - p0))
     return sep_all

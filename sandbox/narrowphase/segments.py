@@ -8,7 +8,7 @@ the polytope routines use them for edge-edge contact points.
 
 import taichi as ti
 
-from ..math3d import quat_rotate
+from ..math3d import dot, quat_rotate
 from .tolerances import LENGTH_EPS2, PARALLEL_EPS2
 
 vec3 = ti.math.vec3
@@ -26,10 +26,10 @@ def core_segment(pos: vec3, rot: vec4, half_height: ti.f32):
 def closest_on_segment(p: vec3, s0: vec3, s1: vec3) -> vec3:
     """Point of segment [s0, s1] closest to p (a zero-length segment returns s0)."""
     d = s1 - s0
-    dd = d.dot(d)
+    dd = dot(d, d)
     t = 0.0
     if dd > LENGTH_EPS2:
-        t = ti.math.clamp((p - s0).dot(d) / dd, 0.0, 1.0)
+        t = ti.math.clamp(dot(p - s0, d) / dd, 0.0, 1.0)
     return s0 + t * d
 
 
@@ -44,9 +44,9 @@ def closest_segments(p1: vec3, q1: vec3, p2: vec3, q2: vec3):
     d1 = q1 - p1
     d2 = q2 - p2
     r = p1 - p2
-    a = d1.dot(d1)
-    e = d2.dot(d2)
-    f = d2.dot(r)
+    a = dot(d1, d1)
+    e = dot(d2, d2)
+    f = dot(d2, r)
     s = 0.0
     t = 0.0
     if a <= LENGTH_EPS2 and e <= LENGTH_EPS2:
@@ -55,11 +55,11 @@ def closest_segments(p1: vec3, q1: vec3, p2: vec3, q2: vec3):
     elif a <= LENGTH_EPS2:
         t = ti.math.clamp(f / e, 0.0, 1.0)
     else:
-        c = d1.dot(r)
+        c = dot(d1, r)
         if e <= LENGTH_EPS2:
             s = ti.math.clamp(-c / a, 0.0, 1.0)
         else:
-            b = d1.dot(d2)
+            b = dot(d1, d2)
             denom = a * e - b * b
             if denom > PARALLEL_EPS2 * a * e:
                 s = ti.math.clamp((b * f - c * e) / denom, 0.0, 1.0)

@@ -69,6 +69,7 @@ import math
 import taichi as ti
 
 from ..formulation import PAPER, baumgarte_rate
+from ..math3d import dot
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
  UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z, PRELOAD, PRELOAD_LAG,
@@ -203,7 +204,7 @@ def row_spring(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.
 def support_push(params: ti.template(), push: ti.math.vec3) -> ti.f32:
     """How much a contact pushing its body along ``push`` holds it up: push . up when that is
     within 45 degrees of up, else 0."""
-    u = push.dot(ti.math.vec3(params[UP_X], params[UP_Y], params[UP_Z]))
+    u = dot(push, ti.math.vec3(params[UP_X], params[UP_Y], params[UP_Z]))
     return u if u >= SUPPORT_COS else 0.0
 
 

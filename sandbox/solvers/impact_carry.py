@@ -12,6 +12,7 @@ as before (solvers/substep.py, ``folds_this_step``), bit for bit.
 
 import taichi as ti
 
+from ..math3d import cross, dot
 from .contact_spring import GRAVITY_REACH, INV_H, RESTITUTION_THRESHOLD, STEP_DT, params_gravity
 
 
@@ -62,13 +63,13 @@ def clamp_impact_carry(rows: ti.template(), c: ti.template(), bodies: ti.templat
         a = c.body_a[q]
         b = c.body_b[q]
         g_h = params_gravity(rows) / rows.params[INV_H]
-        va = bodies.lin_vel[a] + bodies.ang_vel[a].cross(rows.ra[q])
-        vb = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rows.rb[q])
+        va = bodies.lin_vel[a] + cross(bodies.ang_vel[a], rows.ra[q])
+        vb = bodies.lin_vel[b] + cross(bodies.ang_vel[b], rows.rb[q])
         if bodies.inv_mass[a] > 0.0:
             va += g_h
         if bodies.inv_mass[b] > 0.0:
             vb += g_h
-        stop = ti.max(-(vb - va).dot(c.normal[q]), 0.0) / (rows.k_a[q][0] + rows.k_b[q][0])
+        stop = ti.max(-dot(vb - va, c.normal[q]), 0.0) / (rows.k_a[q][0] + rows.k_b[q][0])
         if stop < lam[0]:
             ratio = stop / lam[0]
             rows.lam[q] = lam * ratio

@@ -57,6 +57,7 @@ import taichi as ti
 
 from ..awake import body_id, body_total
 from ..backend import serialize_light_loops
+from ..math3d import cross, mat_vec
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, PRELOAD_LAG, RELAX_PUSH,
                              RESTITUTION_THRESHOLD, SPLIT_BOUND, STEP_DT, support_push)
@@ -308,15 +309,15 @@ def _warm_delta(rows: ti.template(), c: ti.template(), bodies: ti.template(), a:
     dva, dwa, dvb, dwb = vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0)
     for q in range(start, start + count):
         imp = point_impulse(rows, c, q)
-        ta = rows.ra[q].cross(imp)
-        tb = rows.rb[q].cross(imp)
+        ta = cross(rows.ra[q], imp)
+        tb = cross(rows.rb[q], imp)
         if ti.static(friction & ROLLING):
             ta += rolling_impulse(rows, c, q)
             tb += rolling_impulse(rows, c, q)
         dva -= bodies.inv_mass[a] * imp
-        dwa -= bodies.inv_inertia_world[a] @ ta
+        dwa -= mat_vec(bodies.inv_inertia_world[a], ta)
         dvb += bodies.inv_mass[b] * imp
-        dwb += bodies.inv_inertia_world[b] @ tb
+        dwb += mat_vec(bodies.inv_inertia_world[b], tb)
     return dva, dwa, dvb, dwb
 
 
@@ -336,8 +337,8 @@ def _apply_accumulated(rows: ti.template(), c: ti.template(), friction: ti.templ
         dw_b += vec3(rb_[e, 0], rb_[e, 1], rb_[e, 2]) * lam[e]
     if ti.static(friction & ROLLING):
         roll = rolling_impulse(rows, c, q)
-        dw_a += rows.roll_resp_a[q] @ roll
-        dw_b += rows.roll_resp_b[q] @ roll
+        dw_a += mat_vec(rows.roll_resp_a[q], roll)
+        dw_b += mat_vec(rows.roll_resp_b[q], roll)
     return va - rows.lin_a[q] * imp, wa - dw_a, vb + rows.lin_b[q] * imp, wb + dw_b
 
 

@@ -7,7 +7,7 @@ the velocity solve."""
 
 import taichi as ti
 
-from ..math3d import quat_rotate
+from ..math3d import dot, quat_rotate
 from .contact_spring import INV_H, MAX_PUSH, OVERLAP_PUSH, RELAX_PUSH
 
 BIASED, RELAX, RESTITUTION = 0, 1, 2
@@ -24,7 +24,7 @@ def current_separation(rows: ti.template(), c: ti.template(), bodies: ti.templat
     rb = rows.rb[q]
     da = bodies.moved[a] + quat_rotate(bodies.rot[a], rows.ra_body[q]) - ra
     db = bodies.moved[b] + quat_rotate(bodies.rot[b], rows.rb_body[q]) - rb
-    return c.sep[q] + c.normal[q].dot(db - da)
+    return c.sep[q] + dot(c.normal[q], db - da)
 
 
 @ti.func

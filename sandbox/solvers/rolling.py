@@ -6,6 +6,8 @@ switch (rows.contact_switch); solved after the point's normal row (rows.solve_po
 
 import taichi as ti
 
+from ..math3d import dot, mat_vec
+
 vec3 = ti.math.vec3
 
 
@@ -16,8 +18,8 @@ def respond_rolling(rows: ti.template(), c: ti.template(), q: ti.i32, ia, ib):
     rows.roll_resp_a[q] = ia
     rows.roll_resp_b[q] = ib
     both = ia + ib
-    k_roll = vec3(c.normal[q].dot(both @ c.normal[q]), rows.t1[q].dot(both @ rows.t1[q]),
-                  rows.t2[q].dot(both @ rows.t2[q]))
+    k_roll = vec3(dot(c.normal[q], mat_vec(both, c.normal[q])), dot(rows.t1[q], mat_vec(both, rows.t1[q])),
+                  dot(rows.t2[q], mat_vec(both, rows.t2[q])))
     inv_k_roll = vec3(0.0)  # 0: neither body can turn (both static or infinitely inert)
     for e in ti.static(range(3)):
         if k_roll[e] > 0.0:
@@ -49,14 +51,14 @@ def solve_rolling(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
     t1 = rows.t1[q]
     t2 = rows.t2[q]
     if inv_k[0] > 0.0:
-        tn = ti.min(ti.max(lr[0] - (wb - wa).dot(n) * inv_k[0], -arm[1]), arm[1])
+        tn = ti.min(ti.max(lr[0] - dot(wb - wa, n) * inv_k[0], -arm[1]), arm[1])
         d = (tn - lr[0]) * n
         wa -= ia @ d
         wb += ib @ d
         lr[0] = tn
         dw = wb - wa
-        r1 = lr[1] - dw.dot(t1) * inv_k[1]
-        r2 = lr[2] - dw.dot(t2) * inv_k[2]
+        r1 = lr[1] - dot(dw, t1) * inv_k[1]
+        r2 = lr[2] - dot(dw, t2) * inv_k[2]
         mag = ti.sqrt(r1 * r1 + r2 * r2)
         if mag > arm[0]:
             r1 *= arm[0] / mag

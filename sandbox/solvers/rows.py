@@ -50,7 +50,7 @@ impulses are summed into ``lam_step``, the step's impulse (step_impulses.py).
 import numpy as np
 import taichi as ti
 
-from ..math3d import plane_basis, quat_rotate_inv
+from ..math3d import cross, dot, mat_mul, mat_vec, plane_basis, quat_rotate_inv
 from .contact_spring import PARAM_COUNT, RESTITUTION_THRESHOLD, row_spring, supported_load
 from .impact_carry import clear_impacts, note_impact
 from .normal_target import BIASED, RELAX, RESTITUTION, normal_target  # noqa: F401  (the sweep modes live there)
@@ -116,8 +116,8 @@ def contact_switch(effects) -> int:
 
 @ti.func
 def _share(inv_mass: ti.f32, inv_inertia: ti.template(), r: vec3, e: vec3) -> ti.f32:
-    rxe = r.cross(e)
-    return inv_mass + rxe.dot(inv_inertia @ rxe)
+    rxe = cross(r, e)
+    return inv_mass + dot(rxe, mat_vec(inv_inertia, rxe))
 
 
 def upload_row_params(rows, values: list[float]) -> None:
@@ -152,8 +152,8 @@ def prepare_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
     rows.t2[q] = t2
     rows.k_a[q] = vec3(_share(ima, ia, ra, n), _share(ima, ia, ra, t1), _share(ima, ia, ra, t2))
     rows.k_b[q] = vec3(_share(imb, ib, rb, n), _share(imb, ib, rb, t1), _share(imb, ib, rb, t2))
-    v_rel = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
-    rows.approach[q] = v_rel.dot(n)
+    v_rel = bodies.lin_vel[b] + cross(bodies.ang_vel[b], rb) - bodies.lin_vel[a] - cross(bodies.ang_vel[a], ra)
+    rows.approach[q] = dot(v_rel, n)
     note_impact(rows, c, q)
     rows.sep_now[q] = c.sep[q]  # the bodies have not moved since the narrowphase
     rows.lam_step[q] = vec3(0.0)
@@ -200,12 +200,12 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     ib = bodies.inv_inertia_world[b] * sb
     ra = rows.ra[q]
     rb = rows.rb[q]
-    ja = ti.Matrix.rows([ra.cross(c.normal[q]), ra.cross(rows.t1[q]), ra.cross(rows.t2[q])])
-    jb = ti.Matrix.rows([rb.cross(c.normal[q]), rb.cross(rows.t1[q]), rb.cross(rows.t2[q])])
+    ja = ti.Matrix.rows([cross(ra, c.normal[q]), cross(ra, rows.t1[q]), cross(ra, rows.t2[q])])
+    jb = ti.Matrix.rows([cross(rb, c.normal[q]), cross(rb, rows.t1[q]), cross(rb, rows.t2[q])])
     rows.ang_a[q] = ja
     rows.ang_b[q] = jb
-    rows.resp_a[q] = (ia @ ja.transpose()).transpose()  # row e = s_a I_a^-1 (r_a x e)
-    rows.resp_b[q] = (ib @ jb.transpose()).transpose()
+    rows.resp_a[q] = mat_mul(ia, ja.transpose()).transpose()  # row e = s_a I_a^-1 (r_a x e)
+    rows.resp_b[q] = mat_mul(ib, jb.transpose()).transpose()
     rows.lin_a[q] = bodies.inv_mass[a] * sa
     rows.lin_b[q] = bodies.inv_mass[b] * sb
     k = sa * rows.k_a[q] + sb * rows.k_b[q]
@@ -272,8 +272,8 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
         ra_ = rows.resp_a[q]
         rb_ = rows.resp_b[q]
         dl = vb - va
-        f1 = lam[1] - (dl.dot(t1) + wb.dot(_row(jb, 1)) - wa.dot(_row(ja, 1))) * inv_k[1]
-        f2 = lam[2] - (dl.dot(t2) + wb.dot(_row(jb, 2)) - wa.dot(_row(ja, 2))) * inv_k[2]
+        f1 = lam[1] - (dot(dl, t1) + dot(wb, _row(jb, 1)) - dot(wa, _row(ja, 1))) * inv_k[1]
+        f2 = lam[2] - (dot(dl, t2) + dot(wb, _row(jb, 2)) - dot(wa, _row(ja, 2))) * inv_k[2]
         limit = c.friction[q] * lam[0]
         mag = ti.sqrt(f1 * f1 + f2 * f2)
         if mag > limit:
@@ -295,7 +295,7 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
         e = c.restitution[q]
         vn0 = rows.approach[q]
         if e > 0.0 and vn0 < -rows.params[RESTITUTION_THRESHOLD] and rows.lam_step[q][0] > 0.0:
-            vn = (vb - va).dot(n) + wb.dot(_row(jb, 0)) - wa.dot(_row(ja, 0))
+            vn = dot(vb - va, n) + dot(wb, _row(jb, 0)) - dot(wa, _row(ja, 0))
             lb = rows.lam_bounce[q]
             nb = ti.max(lb - (vn + e * vn0) * inv_k[0], 0.0)
             if nb > 0.0 or vn + e * vn0 < 0.0:  # not converged while the row still wants to change
@@ -308,7 +308,7 @@ def solve_point(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
             rows.lam_bounce[q] = nb
     else:
         target, gamma = normal_target(rows, c, bodies, q, mode)
-        vn = (vb - va).dot(n) + wb.dot(_row(jb, 0)) - wa.dot(_row(ja, 0))
+        vn = dot(vb - va, n) + dot(wb, _row(jb, 0)) - dot(wa, _row(ja, 0))
         ln = lam[0] - (vn + target) * inv_k[0]
         if ti.static(mode == BIASED):
             pre = rows.preload[q]
@@ -343,15 +343,15 @@ def compute_residuals(rows: ti.template(), c: ti.template(), bodies: ti.template
         b = c.body_b[q]
         ra = rows.ra[q]
         rb = rows.rb[q]
-        dv = bodies.lin_vel[b] + bodies.ang_vel[b].cross(rb) - bodies.lin_vel[a] - bodies.ang_vel[a].cross(ra)
+        dv = bodies.lin_vel[b] + cross(bodies.ang_vel[b], rb) - bodies.lin_vel[a] - cross(bodies.ang_vel[a], ra)
         k = rows.k_a[q] + rows.k_b[q]
         lam = rows.lam[q]
         target, gamma = normal_target(rows, c, bodies, q, mode, False)
-        w = dv.dot(c.normal[q]) + target + gamma * ti.max(lam[0] - rows.preload[q], 0.0)
+        w = dot(dv, c.normal[q]) + target + gamma * ti.max(lam[0] - rows.preload[q], 0.0)
         rn = ti.min(w, (k[0] + gamma) * lam[0])
         # friction: distance of lambda_t from the projection of its gradient step onto the disk
-        g1 = lam[1] - dv.dot(rows.t1[q]) / k[1]
-        g2 = lam[2] - dv.dot(rows.t2[q]) / k[2]
+        g1 = lam[1] - dot(dv, rows.t1[q]) / k[1]
+        g2 = lam[2] - dot(dv, rows.t2[q]) / k[2]
         limit = c.friction[q] * lam[0]
         mag = ti.sqrt(g1 * g1 + g2 * g2)
         if mag > limit:
