@@ -133,7 +133,7 @@ def find_reusable(cache: ti.template(), found: ti.i32, a: ShapePose, b: ShapePos
         p_ba, q_ba = relative_pose(a, b)
         moved2 = (p_ba - cache.rel_pos[old, found]).norm_sqr()
         d = quat_mul(quat_conj(cache.rel_rot[old, found]), q_ba)
-        sin_half = vec3(d[1], d[2], d[3]).norm() / d.norm()  # either sign of q
+        sin_half = norm(vec3(d[1], d[2], d[3])) / d.norm()  # either sign of q
         if cache.count[old, found] > 0:
             if moved2 < max_d2 and sin_half < max_sin_half:
                 slot = found

@@ -30,6 +30,7 @@ pile of boxes does not pay compile time for capsules and meshes.
 
 import taichi as ti
 
+from ..math3d import norm
 from ..shapes import BOX, CAPSULE, HULL, PLANE, SPHERE, TRIANGLE
 from .core_polytope import collide_core_polytope
 from .manifold import MAX_POINTS, Manifold, ShapePose, manifold_add, manifold_point
@@ -75,7 +76,7 @@ def collide_kinds(pool: ti.template(), a: ShapePose, b: ShapePose, margin: ti.f3
     # bounding spheres (bound 0 = not given, planes have inf) cull far pairs before any routine
     near = True
     if a.bound > 0.0 and b.bound > 0.0:
-        m.gap = (a.pos - b.pos).norm() - a.bound - b.bound
+        m.gap = norm(a.pos - b.pos) - a.bound - b.bound
         near = m.gap < margin
     if near:
         ka = lo.kind

@@ -27,7 +27,7 @@ exact ties; the choices stay deterministic.
 import numpy as np
 import taichi as ti
 
-from ..math3d import cross, dot, quat_to_mat
+from ..math3d import cross, dot, norm, quat_to_mat
 from ..polytope import box_polytope
 from .tolerances import EDGE_PARALLEL_SIN, NO_AXIS
 
@@ -100,7 +100,7 @@ def box_face_queries(pool: ti.template(), pa: ti.i32, pb: ti.i32, q_ba: vec4, p_
     for l in ti.static(range(3)):
         col = vec3(r[0, l], r[1, l], r[2, l])
         t = ar[0, l] * ha[0] + ar[1, l] * ha[1] + ar[2, l] * ha[2] + hb[l]
-        cp = col.dot(p_ba)
+        cp = dot(col, p_ba)
         for si in ti.static(range(2)):
             s = ti.static(-1.0 if si == 0 else 1.0)
             sep = -s * cp - t
@@ -128,7 +128,7 @@ def box_edge_query(r: ti.template(), ha: vec3, hb: vec3, p_ba: vec3):
             ek = vec3(0.0)
             ek[k] = 1.0
             c = cross(ek, u)
-            n = c.norm()
+            n = norm(c)
             if n > EDGE_PARALLEL_SIN:
                 d = c / n
                 if dot(d, p_ba) < 0.0:

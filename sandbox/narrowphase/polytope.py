@@ -41,7 +41,7 @@ Plane-polytope feature id: the polytope's local vertex index.
 
 import taichi as ti
 
-from ..math3d import quat_rotate, quat_rotate_inv
+from ..math3d import dot, quat_rotate, quat_rotate_inv
 from ..shapes import BOX, TRIANGLE
 from .box_sat import box_edge_query, box_face_queries
 from .clip import face_contact
@@ -63,14 +63,14 @@ def collide_plane_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, marg
     n = a.normal
     m = Manifold(count=0, normal=n)
     n_local = quat_rotate_inv(b.rot, n)
-    d_local = n.dot(a.pos - b.pos)
+    d_local = dot(n, a.pos - b.pos)
     vs = pool.vert_start[b.poly]
     r = reducer_new()
     for pass_index in range(REDUCE_PASSES):
         if reducer_needs_pass(r, pass_index):
             for j in range(pool.vert_count[b.poly]):
                 v = pool.vert[vs + j]
-                sep = n_local.dot(v) - d_local
+                sep = dot(n_local, v) - d_local
                 if sep < margin:
                     reducer_visit(r, pass_index, v - n_local * (0.5 * sep), sep, j, n_local)
     reducer_finish(r, m, b.rot, b.pos)
@@ -102,7 +102,7 @@ def collide_polytope_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, m
     if tri:
         f0 = pool.face_start[pb]
         n_tri = quat_rotate(q_ba, pool.face_normal[f0])
-        if n_tri.dot(pool.centroid[pa]) - (pool.face_offset[f0] + n_tri.dot(p_ba)) < 0.0:
+        if dot(n_tri, pool.centroid[pa]) - (pool.face_offset[f0] + dot(n_tri, p_ba)) < 0.0:
             in_front = 0
     boxes = a.kind == BOX and b.kind == BOX
     if in_front:

@@ -53,8 +53,8 @@ def solve_rolling(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
     if inv_k[0] > 0.0:
         tn = ti.min(ti.max(lr[0] - dot(wb - wa, n) * inv_k[0], -arm[1]), arm[1])
         d = (tn - lr[0]) * n
-        wa -= ia @ d
-        wb += ib @ d
+        wa -= mat_vec(ia, d)
+        wb += mat_vec(ib, d)
         lr[0] = tn
         dw = wb - wa
         r1 = lr[1] - dot(dw, t1) * inv_k[1]
@@ -64,8 +64,8 @@ def solve_rolling(rows: ti.template(), c: ti.template(), bodies: ti.template(), 
             r1 *= arm[0] / mag
             r2 *= arm[0] / mag
         d = (r1 - lr[1]) * t1 + (r2 - lr[2]) * t2
-        wa -= ia @ d
-        wb += ib @ d
+        wa -= mat_vec(ia, d)
+        wb += mat_vec(ib, d)
         lr[1] = r1
         lr[2] = r2
         rows.lam_roll[q] = lr
