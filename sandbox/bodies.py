@@ -66,9 +66,17 @@ class Bodies:
         self.placed = ti.field(ti.i32, c)  # 1: put in the world since the last narrowphase (mark_placed)
 
     def upload(self, arrays: dict[str, np.ndarray]) -> None:
-        """Write host arrays (N rows each) into the first N slots. Dynamic bodies keep
-        their float64 positions exactly (float32 value plus remainder); static ones sit
-        at the float32 value, where their geometry is."""
+        """Write host arrays (N rows each) into the first N slots (``upload_columns``), then
+        derive what follows from them (``finish_upload``)."""
+        write_rows(self.upload_columns(arrays))
+        self.finish_upload(len(arrays["inv_mass"]))
+
+    def upload_columns(self, arrays: dict[str, np.ndarray]) -> list:
+        """``upload``'s rows as field_upload.write_rows columns, for a caller that writes them
+        with other buffers' in one launch (build.upload). Dynamic bodies keep their float64
+        positions exactly (float32 value plus remainder); static ones sit at the float32 value,
+        where their geometry is. Every body's support loads start at zero: a new world learns its
+        loads (a few steps); an edit carries them (edits.py)."""
         n = len(arrays["inv_mass"])
         if n > self.capacity:
             raise ValueError("body capacity exceeded")
@@ -78,11 +86,13 @@ class Bodies:
         for name in ("damping", "rolling"):  # motion resistances: none unless given (scene.spec.RESISTANCE_KEYS)
             columns[name] = arrays.get(name, np.zeros((n, 2)))
         columns["pos_rem"] = (pos64 - pos64.astype(np.float32)) * (np.asarray(arrays["inv_mass"]) > 0)[:, None]
-        write_rows([(getattr(self, name), 0, np.asarray(value, np.float64)) for name, value in columns.items()])
+        rows = [(getattr(self, name), 0, np.asarray(value, np.float64)) for name, value in columns.items()]
+        return rows + [(getattr(self, name), 0, np.zeros(self.capacity)) for name in self.LOAD_FIELDS]
+
+    def finish_upload(self, n: int) -> None:
+        """After ``upload_columns``' rows are written: the body count, the world-frame inertias and
+        the first good state."""
         self.count[None] = n
-        self.support.fill(0.0)  # a new world learns its loads (a few steps); an edit carries them (edits.py)
-        self.support_slow.fill(0.0)
-        self.support_points.fill(0)
         update_world_inertia(self, EVERY)
         save_good_state(self, EVERY)
 
@@ -108,9 +118,13 @@ class Bodies:
         """Flag the bodies put in the world (by the scene, an edit or a fracture) that no
         narrowphase has seen yet: a pair of theirs found deeper than a resting contact is an
         overlap to push out gently (manifold_cache.carry_overlap), not an impact."""
+        write_rows(self.placed_columns(indices))
+
+    def placed_columns(self, indices: np.ndarray) -> list:
+        """``mark_placed``'s flags as a write_rows column (every slot: the others cleared)."""
         flags = np.zeros(self.capacity, np.int32)
         flags[np.asarray(indices, np.int64)] = 1
-        self.placed.from_numpy(flags)
+        return [(self.placed, 0, flags)]
 
     STATE_FIELDS = {"position": "pos", "orientation": "rot", "linear_velocity": "lin_vel",
                     "angular_velocity": "ang_vel"}

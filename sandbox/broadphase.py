@@ -22,6 +22,7 @@ import taichi as ti
 
 from .awake import shape_id, shape_total
 from .backend import serialize_light_loops
+from .field_upload import write_rows
 from .integrate import ERR_BOUNDS
 from .math3d import dot, mat_mul, mat_vec, norm, quat_rotate, quat_to_mat
 from .prefix_sum import Scanner, exclusive_scan, sort_range
@@ -98,15 +99,19 @@ class Broadphase:
     def upload_static_grid(self, grid: dict) -> None:
         """Install a grid from ``static_grid.build_static_grid`` (its hash size must match this
         buffer's)."""
+        write_rows(self.static_grid_columns(grid))
+
+    def static_grid_columns(self, grid: dict) -> list:
+        """``upload_static_grid``'s tables as field_upload.write_rows columns (build.upload writes
+        them with the other buffers' in one launch); its bounds are written here."""
         if grid["hash_size"] != self.static_hash_size:
             raise ValueError("static grid was built for another hash size")
         self.static_cell_size[None] = grid["cell_size"]
         self.static_lo[None] = grid["lo"]
         self.static_hi[None] = grid["hi"]
-        self.static_bucket_start.from_numpy(grid["bucket_start"].astype(np.int32))
         entries = np.zeros(self.static_entries.shape[0], np.int32)
         entries[: len(grid["entries"])] = grid["entries"]
-        self.static_entries.from_numpy(entries)
+        return [(self.static_bucket_start, 0, grid["bucket_start"].astype(np.int32)), (self.static_entries, 0, entries)]
 
 
 @ti.func

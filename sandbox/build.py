@@ -17,6 +17,7 @@ import numpy as np
 from .broadphase import compute_all_aabbs
 from .buffers import BufferSet, Capacities
 from .contacts import clear_contacts
+from .field_upload import write_rows
 from .manifold_cache import clear_cache
 from .persistence import clear_history
 from .scene.spec import Scene
@@ -215,14 +216,21 @@ def any_anisotropic(inertias: np.ndarray) -> bool:
     return bool(np.any(deviation > ISOTROPY_TOLERANCE * np.abs(mean)))
 
 
-def upload(host: HostWorld, buffers: BufferSet, margin: float) -> None:
-    """Fill a pooled BufferSet with a world's data and reset its per-step scratch."""
-    buffers.bodies.upload(host.body_arrays)
-    buffers.shapes.upload(host.shape_arrays, host.plane_arrays, host.dynamic_ids)
-    buffers.pool.upload(host.polytopes)
+def upload(host: HostWorld, buffers: BufferSet, margin: float, placed: np.ndarray | None = None) -> None:
+    """Fill a pooled BufferSet with a world's data, ``placed`` its bodies new to the world
+    (Bodies.mark_placed), and reset its per-step scratch. The rows of bodies, shapes, polytopes and
+    the static grid go in one write_rows launch: as one launch per buffer (and a ``fill`` or
+    ``from_numpy`` per field), a process's first world loaded a dozen more kernel instances."""
     lo, hi = static_aabbs(host, margin)
     grid = build_static_grid(lo, hi, host.static_ids, host.cell_size, hash_size=buffers.bp.static_hash_size)
-    buffers.bp.upload_static_grid(grid)
+    polytope_columns, _ = buffers.pool.upload_columns(host.polytopes)
+    write_rows(buffers.bodies.upload_columns(host.body_arrays)
+               + buffers.shapes.upload_columns(host.shape_arrays, host.plane_arrays, host.dynamic_ids)
+               + polytope_columns + buffers.bp.static_grid_columns(grid)
+               + buffers.bodies.placed_columns(np.zeros(0, np.int64) if placed is None else placed))
+    buffers.bodies.finish_upload(len(host.body_arrays["inv_mass"]))
+    buffers.shapes.finish_upload(len(host.shape_arrays["kind"]), len(host.plane_arrays["normal"]),
+                                 len(host.dynamic_ids))
     buffers.bp.cell_size[None] = host.cell_size
     compute_all_aabbs(buffers.bp, buffers.shapes, buffers.bodies, margin)
     clear_contacts(buffers.contacts, buffers.bp)

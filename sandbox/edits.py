@@ -87,8 +87,7 @@ class Edits:
         self.counters = StepCounters(self.buf)
 
     def _upload(self) -> None:
-        upload(self.host, self.buf, self.settings.contact_margin)
-        self.buf.bodies.mark_placed(self.placed)
+        upload(self.host, self.buf, self.settings.contact_margin, self.placed)
 
     def placed_seen(self) -> None:
         """A step has passed since the last edit (its narrowphase will not be redone): the bodies

@@ -69,8 +69,15 @@ class PolytopePool:
     def upload(self, polytopes: list, first: int = 0, offsets: tuple = (0, 0, 0, 0)) -> tuple:
         """Write ``polytopes`` from polytope id ``first`` on, their data from ``offsets``
         (verts, faces, loops, edges). Returns the offsets after them, for appending."""
+        columns, after = self.upload_columns(polytopes, first, offsets)
+        write_rows(columns)
+        return after
+
+    def upload_columns(self, polytopes: list, first: int = 0, offsets: tuple = (0, 0, 0, 0)) -> tuple:
+        """``upload``'s rows as field_upload.write_rows columns, and the offsets after them (build.upload
+        writes them with the other buffers' in one launch)."""
         if not polytopes:
-            return offsets
+            return [], offsets
         vs, fs, ls, es = offsets
         rows, verts, fn, fo, flc, loops, ev, ef, cen = [], [], [], [], [], [], [], [], []
         for p in polytopes:
@@ -92,7 +99,7 @@ class PolytopePool:
         fls = offsets[2] + np.concatenate(([0], np.cumsum(flc)[:-1]))
         ls = offsets[2] + int(flc.sum())
         all_verts, all_normals, loop = np.concatenate(verts), np.concatenate(fn), np.concatenate(loops)
-        write_rows([
+        columns = [
             (self.vert_start, first, rows[:, 0]), (self.vert_count, first, rows[:, 1]),
             (self.face_start, first, rows[:, 2]), (self.face_count, first, rows[:, 3]),
             (self.edge_start, first, rows[:, 4]), (self.edge_count, first, rows[:, 5]),
@@ -103,9 +110,9 @@ class PolytopePool:
             (self.loop, offsets[2], loop),
             (self.side, offsets[2], _side_planes(all_verts, all_normals, loop - offsets[0], flc)),
             (self.edge_vert, offsets[3], np.concatenate(ev)), (self.edge_face, offsets[3], np.concatenate(ef)),
-        ])
+        ]
         self.count = first + len(polytopes)
-        return (vs, fs, ls, es)
+        return columns, (vs, fs, ls, es)
 
 
 def _side_planes(vertices: np.ndarray, normals: np.ndarray, loop: np.ndarray, counts: np.ndarray) -> np.ndarray:
@@ -160,12 +167,21 @@ class ShapeTable:
         self.plane_restitution = ti.field(ti.f32, pc)
 
     def upload(self, arrays: dict[str, np.ndarray], planes: dict[str, np.ndarray], dynamic_ids: np.ndarray) -> None:
-        n = len(arrays["kind"])
+        write_rows(self.upload_columns(arrays, planes, dynamic_ids))
+        self.finish_upload(len(arrays["kind"]), len(planes["normal"]), len(dynamic_ids))
+
+    def upload_columns(self, arrays: dict[str, np.ndarray], planes: dict[str, np.ndarray],
+                       dynamic_ids: np.ndarray) -> list:
+        """``upload``'s rows as field_upload.write_rows columns (build.upload writes them with
+        the other buffers' in one launch)."""
         columns = [(getattr(self, name), 0, values) for name, values in arrays.items()]
         columns.append((self.dynamic_ids, 0, dynamic_ids))
         columns += [(getattr(self, "plane_" + name), 0, planes[name])
                     for name in ("normal", "offset", "body", "friction", "restitution")]
-        write_rows(columns)
-        self.count[None] = n
-        self.dynamic_count[None] = len(dynamic_ids)
-        self.plane_count[None] = len(planes["normal"])
+        return columns
+
+    def finish_upload(self, shapes: int, planes: int, dynamic: int) -> None:
+        """The counts, once ``upload_columns``' rows are written."""
+        self.count[None] = shapes
+        self.dynamic_count[None] = dynamic
+        self.plane_count[None] = planes

@@ -10,7 +10,6 @@ conversions, so the kernels see the same numbers.
 
 from __future__ import annotations
 
-import numpy as np
 import taichi as ti
 
 from .manifold_cache import overlap_depth
@@ -34,14 +33,6 @@ class StepScalars:
     def __init__(self):
         self.f = ti.field(ti.f32, FLOAT_COUNT)
         self.i = ti.field(ti.i32, INT_COUNT)
-        self.written = None  # the (floats, ints) last written
-
-    def write(self, floats: tuple, ints: tuple) -> None:
-        """Store the step's values (``step_scalar_values``) unless they are already there."""
-        if self.written != (floats, ints):
-            self.f.from_numpy(np.asarray(floats, dtype=np.float32))
-            self.i.from_numpy(np.asarray(ints, dtype=np.int32))
-            self.written = (floats, ints)
 
 
 def step_scalar_values(settings, relaxation: float, h: float, plan) -> tuple[tuple, tuple]:

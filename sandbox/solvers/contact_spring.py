@@ -98,7 +98,7 @@ SUPPORT_COS = 0.7071
 def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: bool = True) -> list[float]:
     """This step's ``Rows.params`` values from ``settings`` for substeps of ``h`` [s] with
     ``sweeps`` biased and as many relax sweeps each, in steps of ``dt`` [s], under ``gravity``
-    [m/s^2] (rows.upload_row_params stores them); ``rocking``: the schedule stiffens a face's
+    [m/s^2] (step.py writes them into ``Rows.params``); ``rocking``: the schedule stiffens a face's
     rocking (SolverInfo.stiffens_rocking)."""
 
     values = [0.0] * PARAM_COUNT

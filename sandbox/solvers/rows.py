@@ -47,7 +47,6 @@ When asked (restitution, breakable bodies, ``World.track_impulses``) each subste
 impulses are summed into ``lam_step``, the step's impulse (step_impulses.py).
 """
 
-import numpy as np
 import taichi as ti
 
 from ..math3d import cross, dot, mat_mul, mat_vec, plane_basis, quat_rotate_inv
@@ -118,16 +117,6 @@ def contact_switch(effects) -> int:
 def _share(inv_mass: ti.f32, inv_inertia: ti.template(), r: vec3, e: vec3) -> ti.f32:
     rxe = cross(r, e)
     return inv_mass + dot(rxe, mat_vec(inv_inertia, rxe))
-
-
-def upload_row_params(rows, values: list[float]) -> None:
-    """Store this step's constants (contact_spring.row_params) in ``rows.params``, from the host
-    only when they changed: a kernel argument of 16 floats cost ~0.1 ms of Python per step (its
-    vector built and unpacked on every launch), about a sixth of a small scene's step."""
-    key = tuple(values)
-    if getattr(rows, "_uploaded_params", None) != key:
-        rows.params.from_numpy(np.asarray(values, dtype=np.float32))
-        rows._uploaded_params = key
 
 
 @ti.func
