@@ -99,16 +99,17 @@ class Broadphase:
     def upload_static_grid(self, grid: dict) -> None:
         """Install a grid from ``static_grid.build_static_grid`` (its hash size must match this
         buffer's)."""
-        write_rows(self.static_grid_columns(grid))
-
-    def static_grid_columns(self, grid: dict) -> list:
-        """``upload_static_grid``'s tables as field_upload.write_rows columns (build.upload writes
-        them with the other buffers' in one launch); its bounds are written here."""
-        if grid["hash_size"] != self.static_hash_size:
-            raise ValueError("static grid was built for another hash size")
+        columns = self.static_grid_columns(grid)
         self.static_cell_size[None] = grid["cell_size"]
         self.static_lo[None] = grid["lo"]
         self.static_hi[None] = grid["hi"]
+        write_rows(columns)
+
+    def static_grid_columns(self, grid: dict) -> list:
+        """``upload_static_grid``'s tables as field_upload.write_rows columns (build.upload writes
+        them with the other buffers' in one launch, and its cell size and bounds in the launch after)."""
+        if grid["hash_size"] != self.static_hash_size:
+            raise ValueError("static grid was built for another hash size")
         entries = np.zeros(self.static_entries.shape[0], np.int32)
         entries[: len(grid["entries"])] = grid["entries"]
         return [(self.static_bucket_start, 0, grid["bucket_start"].astype(np.int32)), (self.static_entries, 0, entries)]
@@ -154,12 +155,17 @@ def swept_distance(shapes: ti.template(), bodies: ti.template(), i: ti.i32, h: t
     return d
 
 
-@ti.kernel
-def compute_all_aabbs(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32):
+@ti.func
+def compute_all_aabbs_loops(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32):
     for i in range(shapes.count[None]):
         lo, hi = shape_world_aabb(shapes, bodies, i, margin)
         bp.aabb_min[i] = lo
         bp.aabb_max[i] = hi
+
+
+@ti.kernel
+def compute_all_aabbs(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32):
+    compute_all_aabbs_loops(bp, shapes, bodies, margin)
 
 
 @ti.func

@@ -14,18 +14,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .broadphase import compute_all_aabbs
+import taichi as ti
+
 from .buffers import BufferSet, Capacities
-from .contacts import clear_contacts
 from .field_upload import write_rows
-from .manifold_cache import clear_cache
-from .persistence import clear_history
 from .scene.spec import Scene
 from .settings import Settings
 from .shapes import (
     BOX, CAPSULE, HULL, PLANE, SPHERE, TRIANGLE, PolytopePool, box_polytope, hull_polytope, triangle_polytopes,
 )
 from .static_grid import build_static_grid, static_aabbs, static_entry_count
+from .step_kernels import after_upload
 
 
 RESERVE_HULL = (24, 14, 72, 36)
@@ -228,12 +227,7 @@ def upload(host: HostWorld, buffers: BufferSet, margin: float, placed: np.ndarra
                + buffers.shapes.upload_columns(host.shape_arrays, host.plane_arrays, host.dynamic_ids)
                + polytope_columns + buffers.bp.static_grid_columns(grid)
                + buffers.bodies.placed_columns(np.zeros(0, np.int64) if placed is None else placed))
-    buffers.bodies.finish_upload(len(host.body_arrays["inv_mass"]))
-    buffers.shapes.finish_upload(len(host.shape_arrays["kind"]), len(host.plane_arrays["normal"]),
-                                 len(host.dynamic_ids))
-    buffers.bp.cell_size[None] = host.cell_size
-    compute_all_aabbs(buffers.bp, buffers.shapes, buffers.bodies, margin)
-    clear_contacts(buffers.contacts, buffers.bp)
-    clear_history(buffers.history)
-    clear_cache(buffers.manifold_cache)
-    buffers.errors.clear()  # a pooled buffer may carry the flags of its previous world
+    after_upload(buffers, margin, len(host.body_arrays["inv_mass"]), len(host.shape_arrays["kind"]),
+                 len(host.plane_arrays["normal"]), len(host.dynamic_ids), host.cell_size, grid["cell_size"],
+                 ti.math.vec3(grid["lo"]), ti.math.vec3(grid["hi"]))
+

@@ -254,8 +254,8 @@ def collide_pairs(c: ti.template(), bp: ti.template(), shapes: ti.template(), bo
                         reuse_sin, kinds, awake, dispatch)
 
 
-@ti.kernel
-def clear_contacts(c: ti.template(), bp: ti.template()):
+@ti.func
+def clear_contacts_loops(c: ti.template(), bp: ti.template()):
     """No contact and no pair yet: a world uploaded into a pooled buffer (build.upload) would
     otherwise show, until its first collision, the contacts its buffer's previous world left,
     with that world's body indices (``World.metrics()`` before the first step hung labelling
@@ -263,3 +263,8 @@ def clear_contacts(c: ti.template(), bp: ti.template()):
     c.count[None] = 0
     c.manifold_count[None] = 0
     bp.pair_total[None] = 0
+
+
+@ti.kernel
+def clear_contacts(c: ti.template(), bp: ti.template()):
+    clear_contacts_loops(c, bp)

@@ -51,6 +51,13 @@ class ErrorFlags:
         self.body[None] = BIG
 
 
+@ti.func
+def clear_error_flags(errors: ti.template()):
+    """``ErrorFlags.clear`` inside a kernel."""
+    errors.flags[None] = 0
+    errors.body[None] = BIG
+
+
 GYROSCOPIC, DAMPING = 1, 2
 """Bits of the ``motion`` switch of the position update (effects.py compiles each in only when some
 body needs it): the implicit gyroscopic solve, and linear / angular damping."""

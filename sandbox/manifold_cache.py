@@ -85,8 +85,8 @@ class ManifoldCache:
         self.last = ti.field(ti.i32, (2, sc))
 
 
-@ti.kernel
-def clear_cache(cache: ti.template()):
+@ti.func
+def clear_cache_loops(cache: ti.template()):
     """Forget every manifold (a new world, or a state the remembered ones do not belong to)."""
     cache.parity[None] = 0
     cache.reused[None] = 0
@@ -94,6 +94,11 @@ def clear_cache(cache: ti.template()):
     for h, i in cache.first:
         cache.first[h, i] = 0
         cache.last[h, i] = 0
+
+
+@ti.kernel
+def clear_cache(cache: ti.template()):
+    clear_cache_loops(cache)
 
 
 @ti.func

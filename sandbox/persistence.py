@@ -47,12 +47,17 @@ class ContactHistory:
         self.capacity = c
 
 
-@ti.kernel
-def clear_history(hist: ti.template()):
+@ti.func
+def clear_history_loops(hist: ti.template()):
     hist.count[None] = 0
     for i in range(hist.shape_first.shape[0]):
         hist.shape_first[i] = 0
         hist.shape_last[i] = 0
+
+
+@ti.kernel
+def clear_history(hist: ti.template()):
+    clear_history_loops(hist)
 
 
 @ti.func
