@@ -18,9 +18,9 @@ the fill / dedent results, which depend only on their inputs; the parse itself s
 call site, since the transformer writes into the tree. A side effect: a process keeps
 compiling the sources it first read, even if a file changes on disk while it runs.
 
-What is left of a position string, on a first visit, is ``textwrap``'s line wrapping at 80
-columns of the source line and of its underline (~28 000 ``wrap`` calls, ~0.3 s of a 20-box
-scene's start with a warm cache). A line that fits needs no wrapping: ``_FittingLineWrapper``
+What is left of a position string, on a first visit, is mostly ``textwrap``'s line wrapping at
+80 columns of the source line and of its underline (~28 000 ``wrap`` calls in a 20-box scene's
+start; the strings took 0.36 s of it before, 0.21 s after, docs/bench.md "Eleventh pass"). A line that fits needs no wrapping: ``_FittingLineWrapper``
 answers it directly, with the string ``TextWrapper`` would return, and leaves every other line to
 ``TextWrapper`` (tests/test_source_positions.py compares the two).
 """
