@@ -3,6 +3,7 @@
 
     python benchmarks/stiffness_limit.py model                    # seconds: numpy only
     python benchmarks/stiffness_limit.py buckling [--boxes 20]    # seconds: numpy only
+    python benchmarks/stiffness_limit.py split-weights [--masses 1,10,100,1000]  # seconds: numpy
     python benchmarks/stiffness_limit.py scan [pyramid_20] [--steps 300]
             [--solvers pgs,mass-splitting,block-mass-splitting] [--iterations 1,2,4,8,15,30]
             [--hertz 5,10,15,20,30,45,60]                         # ~30 min on 2 cores
@@ -24,6 +25,16 @@ when the preload (contact_spring.py) holds the unloading edge rigid and the face
 it. The smallest eigenvalue of stiffness minus the weight's geometric stiffness gives the
 column's critical omega for both; each schedule's cap (its K~ / K for an interior box of the
 column) against it predicts which iteration counts let the column stand.
+
+``split-weights``: why the heavy-on-light column converges so slowly under mass splitting, and
+why no other split of the bodies' masses helps. A vertical chain ground - m1 - m2 - ... (one
+contact point per face, all active) solved by the split Jacobi sweep with body i's mass shared
+among its contacts in fractions w (sum 1; the equal split is mass splitting's 1 / n_b): the
+sweep is ``lambda <- lambda - B^-1 (A lambda + b)`` with A the Delassus matrix and B its
+diagonal built from the sub-bodies' masses m_i w. Cauchy-Schwarz gives B >= A for any such
+w (the convergence proof holds), and the spectral radius of ``I - B^-1 A`` is how much of the
+slowest mode's error one sweep leaves. Prints it for the equal split, for shares following the
+partner's mass (and its square root), and the best of a grid of shares.
 
 ``scan``: the engine itself, with the limit turned off (``contact_stiffness_limit = 0``):
 for each schedule, iteration count and ``contact_hertz``, the mean kinetic energy of the
@@ -182,6 +193,52 @@ def run_buckling(args) -> None:
         print(f"{name:26s}" + "".join(f"{c:>19s}" for c in cells))
 
 
+# ----------------------------------------------------------------------------- split weights
+def chain_sweep_radius(masses, shares) -> float:
+    """Spectral radius of one linear split Jacobi sweep on the chain ground - masses[0] - masses[1]
+    - ...; ``shares[i]`` = (share of body i's mass at its lower contact, at its upper one)."""
+    m = np.asarray(masses, float)
+    n = len(m)
+    jac = np.eye(n) - np.eye(n, k=-1)  # contact k: body k's velocity up minus body k-1's
+    delassus = jac @ np.diag(1.0 / m) @ jac.T
+    diag = np.array([1.0 / (shares[k][0] * m[k]) + (1.0 / (shares[k - 1][1] * m[k - 1]) if k else 0.0)
+                     for k in range(n)])
+    return float(np.max(np.abs(np.linalg.eigvals(np.eye(n) - delassus / diag[:, None]))))
+
+
+def partner_shares(masses, power: float) -> list:
+    """Each body's shares in proportion to (the mass across each contact) ** power, the ground
+    counted as heavy as the chain's heaviest body; the top body has one contact and keeps its whole
+    mass there."""
+    shares = []
+    for k in range(len(masses) - 1):
+        below = masses[k - 1] if k else max(masses)  # the ground
+        lo, hi = below ** power, masses[k + 1] ** power
+        shares.append((lo / (lo + hi), hi / (lo + hi)))
+    return shares + [(1.0, 1.0)]
+
+
+def best_grid_shares(masses, steps: int = 49) -> tuple:
+    grid = np.linspace(0.02, 0.98, steps)
+    best = (np.inf, None)
+    for lows in np.array(np.meshgrid(*[grid] * (len(masses) - 1))).reshape(len(masses) - 1, -1).T:
+        shares = [(w, 1.0 - w) for w in lows] + [(1.0, 1.0)]
+        best = min(best, (chain_sweep_radius(masses, shares), tuple(lows)), key=lambda t: t[0])
+    return best
+
+
+def run_split_weights(args) -> None:
+    masses = [float(x) for x in args.masses.split(",")]
+    print(f"chain ground - {' - '.join(f'{m:g} kg' for m in masses)}: spectral radius of one split "
+          "Jacobi sweep (1 - the slowest mode's convergence per sweep)")
+    equal = partner_shares(masses, 0.0)
+    print(f"  equal split (mass splitting)       {chain_sweep_radius(masses, equal):.8f}")
+    for power in (0.5, 1.0):
+        print(f"  shares ~ partner mass ** {power:<4g}      {chain_sweep_radius(masses, partner_shares(masses, power)):.8f}")
+    radius, lows = best_grid_shares(masses)
+    print(f"  best of a grid of shares           {radius:.8f} (lower-contact shares {', '.join(f'{w:.2f}' for w in lows)})")
+
+
 # ----------------------------------------------------------------------------- the scan
 def run_scan(args) -> None:
     from sandbox import Scene, Settings, World
@@ -223,6 +280,8 @@ def main() -> None:
     buckling = sub.add_parser("buckling", help="the column's critical spring against each schedule's cap")
     buckling.add_argument("--boxes", type=int, default=20)
     buckling.add_argument("--iterations", default="1,2,4,8,15,30")
+    split = sub.add_parser("split-weights", help="a heavy-on-light chain's convergence per sweep, any mass split")
+    split.add_argument("--masses", default="1,10,100,1000", help="bottom to top [kg]")
     scan = sub.add_parser("scan", help="the engine with the stability limit off")
     scan.add_argument("scene", nargs="?", default="pyramid_20")
     scan.add_argument("--steps", type=int, default=300)
@@ -230,7 +289,7 @@ def main() -> None:
     scan.add_argument("--iterations", default="1,2,4,8,15,30")
     scan.add_argument("--hertz", default="5,10,15,20,30,45,60")
     args = ap.parse_args()
-    {"model": run_model, "buckling": run_buckling, "scan": run_scan}[args.what](args)
+    {"model": run_model, "buckling": run_buckling, "split-weights": run_split_weights, "scan": run_scan}[args.what](args)
 
 
 if __name__ == "__main__":

@@ -27,3 +27,18 @@ def test_taller_columns_need_stiffer_springs_and_the_critical_spring_does_not_de
     assert omegas == sorted(omegas) and omegas[0] < omegas[-1]
     assert stiffness_limit.column_is_stiff_enough(20, 1.01 * omegas[-1], 1.0, mass=1.0)
     assert not stiffness_limit.column_is_stiff_enough(20, 0.99 * omegas[-1], 1.0, mass=1.0)
+
+
+def test_no_split_of_the_masses_speeds_a_heavy_on_light_chain_and_the_equal_split_converges():
+    """benchmarks/stiffness_limit.py split-weights (docs/method-notes.md, "Limits"): the 1:1000
+    chain keeps ~99.98 % of its slowest error per split sweep, and shares that follow the
+    partner's mass, or the best of a grid of shares, keep no less."""
+    masses = [1.0, 10.0, 100.0, 1000.0]
+    equal = stiffness_limit.chain_sweep_radius(masses, stiffness_limit.partner_shares(masses, 0.0))
+    assert 0.999 < equal < 1.0
+    for power in (0.5, 1.0):
+        assert stiffness_limit.chain_sweep_radius(masses, stiffness_limit.partner_shares(masses, power)) >= equal
+    best, _ = stiffness_limit.best_grid_shares(masses, steps=13)
+    assert best >= equal - 1e-9
+    # an equal-mass chain converges ~200x faster per sweep under the same split
+    assert stiffness_limit.chain_sweep_radius([1.0] * 4, stiffness_limit.partner_shares([1.0] * 4, 0.0)) < 0.97
