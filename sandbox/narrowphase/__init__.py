@@ -105,7 +105,7 @@ def collide_kinds(pool: ti.template(), a: ShapePose, b: ShapePose, margin: ti.f3
                 m = collide_core_polytope(pool, lo, hi, margin)
         if ti.static(_has_any(kinds, BOX, HULL)):
             if (ka == BOX or ka == HULL) and poly_b:
-                m = collide_polytope_polytope(pool, lo, hi, margin)
+                m = collide_polytope_polytope(pool, lo, hi, margin, kinds)
     if swap:
         m.normal = -m.normal
         m.normal_on_b = 1 - m.normal_on_b  # a routine's B is our A

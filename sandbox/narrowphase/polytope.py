@@ -42,7 +42,7 @@ Plane-polytope feature id: the polytope's local vertex index.
 import taichi as ti
 
 from ..math3d import dot, quat_rotate, quat_rotate_inv
-from ..shapes import BOX, TRIANGLE
+from ..shapes import BOX, HULL, TRIANGLE
 from .box_sat import box_edge_query, box_face_queries
 from .clip import face_contact
 from .manifold import Manifold, ShapePose, manifold_add, relative_pose
@@ -90,44 +90,56 @@ def _edge_contact(pool: ti.template(), m: ti.template(), a: ShapePose, pb: ti.i3
 
 
 @ti.func
-def collide_polytope_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, margin: ti.f32) -> Manifold:
-    """SAT + clipping between two polytopes; b may be a one-sided mesh triangle."""
+def collide_polytope_polytope(pool: ti.template(), a: ShapePose, b: ShapePose, margin: ti.f32,
+                              kinds: ti.template()) -> Manifold:
+    """SAT + clipping between two polytopes; b may be a one-sided mesh triangle. ``kinds``: the
+    shape kinds the world has (narrowphase.collide_kinds): the queries of a kind pair it cannot
+    meet are not compiled (a world of boxes compiles neither the general SAT nor the triangle's
+    tests), the same branches taken for the pairs it does meet."""
     m = Manifold(count=0, normal=vec3(0.0, 0.0, 1.0))
     pa = a.poly
     pb = b.poly
     p_ba, q_ba = relative_pose(a, b)
-    tri = 1 if b.kind == TRIANGLE else 0
+    tri = 0
     n_tri = vec3(0.0, 0.0, 1.0)
     in_front = 1
-    if tri:
-        f0 = pool.face_start[pb]
-        n_tri = quat_rotate(q_ba, pool.face_normal[f0])
-        if dot(n_tri, pool.centroid[pa]) - (pool.face_offset[f0] + dot(n_tri, p_ba)) < 0.0:
-            in_front = 0
+    if ti.static(TRIANGLE in kinds):
+        tri = 1 if b.kind == TRIANGLE else 0
+        if tri:
+            f0 = pool.face_start[pb]
+            n_tri = quat_rotate(q_ba, pool.face_normal[f0])
+            if dot(n_tri, pool.centroid[pa]) - (pool.face_offset[f0] + dot(n_tri, p_ba)) < 0.0:
+                in_front = 0
     boxes = a.kind == BOX and b.kind == BOX
+    general = ti.static(HULL in kinds or TRIANGLE in kinds)  # a pair of two boxes is not the only one
     if in_front:
         fa_all, fa_ok, face_a, vert_a = NO_AXIS, NO_AXIS, -1, -1
         fb_all, fb_ok, face_b, vert_b = NO_AXIS, NO_AXIS, -1, -1
         r_ba, ha, hb = ti.math.mat3(0.0), vec3(0.0), vec3(0.0)
-        if boxes:  # closed forms of the same queries (box_sat.py)
-            fa_all, fa_ok, face_a, vert_a, fb_all, fb_ok, face_b, vert_b, r_ba, ha, hb = box_face_queries(
-                pool, pa, pb, q_ba, p_ba)
-        else:
-            fa_all, fa_ok, face_a, vert_a = face_query_a(pool, pa, pb, q_ba, p_ba, tri, n_tri)
-            fb_all, fb_ok, face_b, vert_b = face_query_b(pool, pa, pb, q_ba, p_ba, tri)
+        if ti.static(BOX in kinds):
+            if boxes:  # closed forms of the same queries (box_sat.py)
+                fa_all, fa_ok, face_a, vert_a, fb_all, fb_ok, face_b, vert_b, r_ba, ha, hb = box_face_queries(
+                    pool, pa, pb, q_ba, p_ba)
+        if ti.static(general):
+            if not boxes:
+                fa_all, fa_ok, face_a, vert_a = face_query_a(pool, pa, pb, q_ba, p_ba, tri, n_tri)
+                fb_all, fb_ok, face_b, vert_b = face_query_b(pool, pa, pb, q_ba, p_ba, tri)
         best_all = ti.max(fa_all, fb_all)
         e_ok, edge_a, edge_b, axis = NO_AXIS, -1, -1, vec3(0.0, 0.0, 1.0)
         if best_all < margin:  # a face already separates them: skip the costly edge pairs
-            if boxes:
-                e_s, ea_s, eb_s, ax_s = box_edge_query(r_ba, ha, hb, p_ba)
-                best_all = ti.max(best_all, e_s)
-                e_ok, edge_a, edge_b, axis = e_s, ea_s, eb_s, ax_s
-            elif tri:  # edges of a triangle only prove apartness, never give the normal
-                best_all = ti.max(best_all, edge_query_triangle(pool, pa, pb, q_ba, p_ba, n_tri))
-            else:
-                e_s, ea_s, eb_s, ax_s = edge_query_solid(pool, pa, pb, q_ba, p_ba)
-                best_all = ti.max(best_all, e_s)
-                e_ok, edge_a, edge_b, axis = e_s, ea_s, eb_s, ax_s
+            if ti.static(BOX in kinds):
+                if boxes:
+                    e_s, ea_s, eb_s, ax_s = box_edge_query(r_ba, ha, hb, p_ba)
+                    best_all = ti.max(best_all, e_s)
+                    e_ok, edge_a, edge_b, axis = e_s, ea_s, eb_s, ax_s
+            if ti.static(TRIANGLE in kinds):
+                if not boxes and tri:  # edges of a triangle only prove apartness, never give the normal
+                    best_all = ti.max(best_all, edge_query_triangle(pool, pa, pb, q_ba, p_ba, n_tri))
+            if ti.static(HULL in kinds):
+                if not boxes and not tri:
+                    e_s, ea_s, eb_s, ax_s = edge_query_solid(pool, pa, pb, q_ba, p_ba)
+                    best_all = ti.max(best_all, e_s)
+                    e_ok, edge_a, edge_b, axis = e_s, ea_s, eb_s, ax_s
         best_ok = ti.max(fa_ok, ti.max(fb_ok, e_ok))
         if best_all < margin and best_ok > NO_AXIS_HALF:
             # one call site per contact builder: every inlined copy adds to the kernel's compile time
