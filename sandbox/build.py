@@ -13,7 +13,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
 import taichi as ti
 
 from .buffers import BufferSet, Capacities
@@ -230,4 +229,3 @@ def upload(host: HostWorld, buffers: BufferSet, margin: float, placed: np.ndarra
     after_upload(buffers, margin, len(host.body_arrays["inv_mass"]), len(host.shape_arrays["kind"]),
                  len(host.plane_arrays["normal"]), len(host.dynamic_ids), host.cell_size, grid["cell_size"],
                  ti.math.vec3(grid["lo"]), ti.math.vec3(grid["hi"]))
-
