@@ -2,7 +2,7 @@
 imports the package, loads the scene, builds the world and runs one step.
 
     python benchmarks/first_step.py [--scenes stack_20,confined_pile] [--solver <the scene's>]
-                                    [--cache warm|fresh|both]
+                                    [--cache warm|fresh|both] [--split [--instances N]]
 
 ``warm``: Taichi's offline kernel cache as the previous runs left it (the scene is run once
 untimed first, so the cache holds its kernels); ``fresh``: an empty cache directory
@@ -16,6 +16,8 @@ transform of each new kernel instance (``Kernel.materialize``), which Taichi 1.7
 process because its offline cache is keyed on the IR the frontend produces; and *kernels*, the
 first launch of each instance less its frontend (the offline cache's load, or a compile, and
 LLVM's JIT of the module to machine code). The rest is the sandbox's own Python and the runs.
+``--instances N`` lists the N costliest instances by name: a small instance's first launch costs
+~15 ms however little it does (docs/bench.md, "Eleventh pass"), so their number matters too.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from pathlib import Path
 CHILD = r"""
 import json, sys, time
 t0 = time.perf_counter()
-split = {"frontend": 0.0, "kernels": 0.0, "instances": 0}
+split = {"frontend": 0.0, "kernels": 0.0, "instances": 0, "each": {}}
 if sys.argv[3] == "split":
     from taichi.lang import kernel_impl
 
@@ -43,13 +45,16 @@ if sys.argv[3] == "split":
         if len(self.compiled_kernels) > before:  # a new instance: the frontend ran
             split["frontend"] += time.perf_counter() - t
             split["instances"] += 1
+            split["each"][f"{self.func.__name__}#{len(self.compiled_kernels)}"] = [time.perf_counter() - t, 0.0]
         return out
 
     def timed_call(self, *args, _inner=kernel_impl.Kernel.__call__, **kwargs):
         before, front, t = len(self.compiled_kernels), split["frontend"], time.perf_counter()
         out = _inner(self, *args, **kwargs)
         if len(self.compiled_kernels) > before:  # its first launch: cache load or compile, and JIT
-            split["kernels"] += time.perf_counter() - t - (split["frontend"] - front)
+            launch = time.perf_counter() - t - (split["frontend"] - front)
+            split["kernels"] += launch
+            split["each"][f"{self.func.__name__}#{len(self.compiled_kernels)}"][1] = launch
         return out
 
     kernel_impl.Kernel.materialize = timed_materialize
@@ -90,6 +95,8 @@ def main() -> None:
     ap.add_argument("--cache", choices=("warm", "fresh", "both"), default="warm")
     ap.add_argument("--split", action="store_true", help="say how much of build + first step is Taichi's "
                     "frontend and how much the kernels' first launches (module docstring)")
+    ap.add_argument("--instances", type=int, default=0, metavar="N",
+                    help="with --split: also list the N costliest kernel instances (frontend + first launch)")
     a = ap.parse_args()
     print(f"# {platform.processor() or platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}; "
           "seconds of a fresh process: wall (import / build / first step" + ("; of build + first step: Taichi's "
@@ -103,13 +110,18 @@ def main() -> None:
 
     for scene in a.scenes.split(","):
         row = f"{scene:22s}"
+        runs = []
         if a.cache in ("warm", "both"):
             run_child(scene, a.solver, None)  # fill the cache
-            row += f"  warm {figures(run_child(scene, a.solver, None, a.split))}"
+            runs.append(("warm", run_child(scene, a.solver, None, a.split)))
         if a.cache in ("fresh", "both"):
             with tempfile.TemporaryDirectory() as empty:
-                row += f"  fresh {figures(run_child(scene, a.solver, empty, a.split))}"
-        print(row, flush=True)
+                runs.append(("fresh", run_child(scene, a.solver, empty, a.split)))
+        print(row + "".join(f"  {cache} {figures(r)}" for cache, r in runs), flush=True)
+        for cache, r in runs if a.split and a.instances else ():
+            costliest = sorted(r["each"].items(), key=lambda kv: -sum(kv[1]))[:a.instances]
+            for name, (front, launch) in costliest:  # name#k: the kernel's k-th instance in the process
+                print(f"    {cache} {name:32s} frontend {front:6.3f} s  first launch {launch:6.3f} s")
 
 
 if __name__ == "__main__":
