@@ -14,6 +14,8 @@ import numpy as np
 import taichi as ti
 from taichi.lang.matrix import MatrixField
 
+from .backend import serialize_light_loops
+
 
 def _element_shape(field) -> tuple:
     if isinstance(field, MatrixField):
@@ -42,22 +44,31 @@ GROUP = 16
 """Columns per unrolled group of ``_write_columns`` (Taichi warns of a static loop longer than 32)."""
 
 
+@ti.func
+def _write_all(fields: ti.template(), meta: ti.template(), floats: ti.template(), ints: ti.template()):
+    for g in ti.static(range(0, len(fields), GROUP)):
+        for k in ti.static(range(g, min(g + GROUP, len(fields)))):
+            width = ti.static(int(np.prod(_element_shape(fields[k]), dtype=np.int64)))
+            for i in range(meta[k, 1]):
+                if ti.static(_is_float(fields[k])):
+                    _write_row(fields[k], meta[k, 0] + i, floats, meta[k, 2] + i * width)
+                else:
+                    _write_row(fields[k], meta[k, 0] + i, ints, meta[k, 2] + i * width)
+
+
 @ti.kernel
 def _write_columns(fields: ti.template(), meta: ti.types.ndarray(dtype=ti.i32, ndim=2),
                    floats: ti.types.ndarray(dtype=ti.f32, ndim=1), ints: ti.types.ndarray(dtype=ti.i32, ndim=1)):
     """Column k: rows meta[k, 0] .. + meta[k, 1] of fields[k], from its values at meta[k, 2].
-    One serial task for all columns: a parallel loop per column made a module of as many tasks,
-    which LLVM compiled (or, from the offline cache, loaded) at twice the cost, for rows that take
-    microseconds to write."""
-    for _ in range(1):
-        for g in ti.static(range(0, len(fields), GROUP)):
-            for k in ti.static(range(g, min(g + GROUP, len(fields)))):
-                width = ti.static(int(np.prod(_element_shape(fields[k]), dtype=np.int64)))
-                for i in range(meta[k, 1]):
-                    if ti.static(_is_float(fields[k])):
-                        _write_row(fields[k], meta[k, 0] + i, floats, meta[k, 2] + i * width)
-                    else:
-                        _write_row(fields[k], meta[k, 0] + i, ints, meta[k, 2] + i * width)
+    On the CPU one serial task writes every column: a parallel loop per column made a module of as
+    many tasks, which LLVM compiled (or, from the offline cache, loaded) at twice the cost, for rows
+    that take microseconds to write. On a GPU, where one thread would write them one by one, each
+    column stays a parallel loop."""
+    if ti.static(serialize_light_loops()):
+        for _ in range(1):
+            _write_all(fields, meta, floats, ints)
+    else:
+        _write_all(fields, meta, floats, ints)
 
 
 def write_rows(columns) -> None:
