@@ -3,13 +3,12 @@
 ``cross``, ``dot``, ``norm``, ``mat_vec`` and ``mat_mul`` write out what Taichi's
 ``a.cross(b)``, ``a.dot(b)``, ``v.norm()`` and ``m @ x`` compute, operation for operation in the
 same order, so the bits are the same (the state hashes did not move); the engine's kernels use
-them for every product of 3-vectors and 3x3 matrices (a 4-vector's norm keeps Taichi's). Why: Taichi 1.7's frontend turns every kernel's Python AST
-into IR in every process (its offline cache is keyed on that IR) and transforms a called
-function's body once per call site; Taichi's generic matrix helpers run shape checks and static
-loops each time, ~2 ms per ``cross`` or ``dot`` and ~20 ms per ``@`` on the 2-core VM. Written
-out, a first step makes 13 % fewer Python calls (``python benchmarks/first_step.py --split``;
-docs/bench.md, "Tenth pass").
-"""
+them for every product of 3-vectors and 3x3 matrices (a 4-vector's norm keeps Taichi's). Why:
+Taichi 1.7's frontend turns every kernel's Python AST into IR in every process (its offline cache
+is keyed on that IR) and transforms a called function's body once per call site; Taichi's
+generic matrix helpers run shape checks and static loops each time, ~2 ms per ``cross`` or ``dot``
+and ~20 ms per ``@`` on the 2-core VM. Written out, a first step makes 13 % fewer Python calls
+(``python benchmarks/first_step.py --split``; docs/bench.md, "Tenth pass")."""
 
 
 import taichi as ti

@@ -34,6 +34,11 @@ _installed = False
 _sources_installed = False
 
 
+_BREAKS = frozenset("\t\n\x0b\x0c\r")
+"""The whitespace ``TextWrapper`` expands or replaces before it wraps: a line with any of these
+takes the wrapper's own path."""
+
+
 class _FittingLineWrapper(textwrap.TextWrapper):
     """``TextWrapper(width=80)`` as Taichi's ``get_pos_info`` uses it (default options), with a
     shortcut for the common case: an ASCII line without tabs or line breaks that fits the width
@@ -46,11 +51,6 @@ class _FittingLineWrapper(textwrap.TextWrapper):
             kept = text.rstrip(" ")
             return [kept] if kept else []
         return super().wrap(text)
-
-
-_BREAKS = frozenset("\t\n\x0b\x0c\r")
-"""The whitespace ``TextWrapper`` expands or replaces before it wraps: a line with any of these
-takes the wrapper's own path."""
 
 
 def _position_key(ctx, node) -> tuple:
