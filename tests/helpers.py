@@ -14,6 +14,7 @@ import os
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 TEST_ARCH = os.environ.get("SANDBOX_TEST_ARCH", "cpu")
 """The Taichi backend of this test run (``SANDBOX_TEST_ARCH=cuda pytest ...`` on a GPU machine):
@@ -73,6 +74,22 @@ def assert_same_state(expected: dict, actual: dict, label: str = "") -> None:
     assert expected.keys() == actual.keys(), label
     for key in expected:
         np.testing.assert_array_equal(expected[key], actual[key], err_msg=f"{label} {key}".strip())
+
+
+def assert_same_metrics(expected: dict, actual: dict) -> None:
+    """Two ``World.metrics()`` dicts of worlds in the same state agree: bit for bit on the CPU;
+    on another backend the counts exactly and the float sums to float32 rounding (metrics.py sums
+    with float atomics, which a GPU commits in any order: the residual's last bits differed on an
+    H200, 2026-11-27, with the states equal)."""
+    assert expected.keys() == actual.keys()
+    if TEST_ARCH == "cpu":
+        assert expected == actual
+        return
+    for key, value in expected.items():
+        if isinstance(value, float):
+            assert actual[key] == pytest.approx(value, rel=1e-5, abs=1e-12), key
+        else:
+            assert actual[key] == value, key
 
 
 def run_collecting(world, steps: int, keys=("kinetic_energy", "max_penetration")) -> dict[str, np.ndarray]:

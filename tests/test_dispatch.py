@@ -76,7 +76,8 @@ def test_cuda_loop_shapes_on_the_cpu_give_the_stored_bits():
     stored = sh.stored()
     if stored is None:
         pytest.skip(sh.no_platform_message())
-    env = {**os.environ, "SANDBOX_LOOPS": "cuda", "PYTHONPATH": str(sh.ROOT)}
+    paths = [str(sh.ROOT), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]  # and any site given
+    env = {**os.environ, "SANDBOX_LOOPS": "cuda", "PYTHONPATH": os.pathsep.join(paths)}
     run = subprocess.run([sys.executable, "-c", CHILD, *CUDA_SHAPE_CASES], capture_output=True, text=True,
                          env=env, cwd=sh.ROOT, timeout=600)
     assert run.returncode == 0, run.stderr[-2000:]

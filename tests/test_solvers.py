@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from sandbox import Scene, SimulationError, World
+from sandbox import Scene, Settings, SimulationError, World
 
 from tests.helpers import TEST_ARCH, box_body, compiled_kernel_count, plane, scene_dict
 
@@ -31,8 +31,6 @@ SMALL_PROBLEMS = {
 def _one_step(bodies, solver, sweeps):
     """One step from rest with no warm start, as one substep whose velocity-level problem
     (soft, then rigid relax) is swept `sweeps` times."""
-    from sandbox import Settings
-
     scene = Scene.from_dict(scene_dict(bodies))
     world = World(scene, solver=solver, iterations=1, arch=TEST_ARCH, settings=Settings(warm_start=0.0, sweeps=sweeps))
     world.track_impulses = True
@@ -276,16 +274,18 @@ def test_fused_step_kernels_give_the_profiled_bits(solver):
         np.testing.assert_array_equal(states[0][key], states[1][key], err_msg=key)
 
 
-@pytest.mark.parametrize("solver, launches", [("mass-splitting", "one"), ("pgs-colored", "several")],
-                         ids=["one-launch solve", "solve in launches"])
-def test_a_step_timed_launch_by_launch_is_the_fused_step(solver, launches):
+@pytest.mark.parametrize("solver, launch", [("mass-splitting", "one"), ("mass-splitting", "per-substep"),
+                                            ("pgs-colored", "auto")],
+                         ids=["one-launch solve", "a launch per substep (a GPU's)", "colouring in launches"])
+def test_a_step_timed_launch_by_launch_is_the_fused_step(solver, launch):
     """The web sandbox samples a step launch by launch (profile.py): the fused step's own kernels
     with a sync between them, so sampling compiles nothing new (a per-stage step compiled a
     second set, a 4-11 s pause of the running world), gives the same bits, and times every
-    launch under its stage group."""
+    launch under its stage group. The launch is named: "auto" is a launch per substep on a GPU."""
     scene = Scene.from_dict(_pile_300())
-    plain = World(scene, solver=solver, iterations=4, arch=TEST_ARCH)
-    sampled = World(scene, solver=solver, iterations=4, arch=TEST_ARCH)
+    settings = Settings(iteration_launch=launch)
+    plain = World(scene, solver=solver, iterations=4, arch=TEST_ARCH, settings=settings)
+    sampled = World(scene, solver=solver, iterations=4, arch=TEST_ARCH, settings=settings)
     sampled.profiler.per_stage = False
     plain.step(30)
     sampled.step(29)
@@ -297,7 +297,7 @@ def test_a_step_timed_launch_by_launch_is_the_fused_step(solver, launches):
     assert compiled_kernel_count() == compiled
     timing = sampled.timing_ms()
     assert timing["collide"] > 0.0 and timing["solve"] > 0.0
-    assert (timing["iterate"] > 0.0) == (launches == "several")  # colouring: set-up, loop and store apart
+    assert (timing["iterate"] > 0.0) == (launch != "one")  # else set-up, loop and store are launches apart
     assert timing["total"] == pytest.approx(timing["collide"] + timing["solve"] + timing["integrate"])
     for key, value in plain.state().items():
         np.testing.assert_array_equal(value, sampled.state()[key], err_msg=key)
