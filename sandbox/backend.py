@@ -160,3 +160,12 @@ def serialize_light_loops() -> bool:
     thread; a step has ~40 such loops. On CUDA they stay parallel (and under loop_arch's
     ``SANDBOX_LOOPS=cuda``)."""
     return _loop_arch == "cpu"
+
+
+def capacity_ranges() -> bool:
+    """Compile-time switch for the loops of a substep launched on its own
+    (solvers/substep_loops.py): under CUDA's loop shapes each runs to its buffer's capacity, a
+    constant, and every thread compares its index with the count itself, since a range read at
+    run time is a single-thread task before the loop, on a GPU a launch of its own. The CPU
+    keeps ``range(count)``: there a constant capacity would visit empty slots for nothing."""
+    return _loop_arch == "cuda"

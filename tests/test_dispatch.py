@@ -66,18 +66,25 @@ for cid in sys.argv[1:]:
     print(cid, sh.run_case(cases[cid]), flush=True)
     iterations = Scene.load(cases[cid].path).solver.iterations
     print("launches", cid, launches[0] - before, cases[cid].steps * iterations, flush=True)
+import contextlib, io, taichi as ti
+table = io.StringIO()
+with contextlib.redirect_stdout(table):
+    ti.profiler.print_kernel_profiler_info("count")
+names = sorted({w for line in table.getvalue().splitlines() for w in line.split() if w.startswith("substep_parallel")})
+print("substep tasks", *names)
 """
 
 
 def test_cuda_loop_shapes_on_the_cpu_give_the_stored_bits():
     """Every loop parallel on Taichi's worker threads, the iteration loop one launch per substep,
     as on a GPU: a loop whose result hung on its order (a race the CPU's serial light loops
-    hide) would change the bits. A fresh process, since the shapes are fixed at compile time."""
+    hide) would change the bits. A fresh process, since the shapes are fixed at compile time;
+    Taichi's kernel profiler there lists the substep launch's tasks (solvers/substep_loops.py)."""
     stored = sh.stored()
     if stored is None:
         pytest.skip(sh.no_platform_message())
     paths = [str(sh.ROOT), *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]  # and any site given
-    env = {**os.environ, "SANDBOX_LOOPS": "cuda", "PYTHONPATH": os.pathsep.join(paths)}
+    env = {**os.environ, "SANDBOX_LOOPS": "cuda", "PYTHONPATH": os.pathsep.join(paths), "TI_KERNEL_PROFILER": "1"}
     run = subprocess.run([sys.executable, "-c", CHILD, *CUDA_SHAPE_CASES], capture_output=True, text=True,
                          env=env, cwd=sh.ROOT, timeout=600)
     assert run.returncode == 0, run.stderr[-2000:]
@@ -92,6 +99,10 @@ def test_cuda_loop_shapes_on_the_cpu_give_the_stored_bits():
     for cid in ("stack_20-mass-splitting-60", "stack_20-block-mass-splitting-60"):
         launched, substeps = counts[cid]
         assert launched == substeps, f"{cid}: {launched} substep launches for {substeps} substeps"
+    # and each launch is its loops alone: a statement between two loops (a range read at run
+    # time, a value argument's copy) would be a single-thread task, on a GPU a launch of its own
+    tasks = next(line.split()[2:] for line in run.stdout.splitlines() if line.startswith("substep tasks"))
+    assert tasks and not [t for t in tasks if not t.endswith("_range_for")], tasks
 
 
 def test_an_unknown_loop_shape_is_refused(monkeypatch):

@@ -82,6 +82,7 @@ class BlockScratch:
     def __init__(self, block_capacity: int, body_capacity: int):
         bc = max(16, block_capacity)
         nb = max(1, body_capacity)
+        self.block_capacity = bc
         self.block_count = ti.field(ti.i32, ())
         self.adj_count = ti.field(ti.i32, nb + 1)
         self.adj_start = ti.field(ti.i32, nb + 1)

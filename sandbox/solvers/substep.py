@@ -42,6 +42,7 @@ from .mass_splitting import gather_body, sweep_block, sweep_blocks, warm_block, 
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX
 from .step_impulses import add_step_impulse, add_step_impulses_loop
+from .substep_loops import jacobi_substep_loops
 
 vec3 = ti.math.vec3
 
@@ -145,25 +146,18 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     (visit_order.visited_point)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     s, rows, c, bodies, col = b.blocks, b.rows, b.contacts, b.bodies, b.coloring
-    gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
-    warm_here, warm_next = first, then_warm
-    if ti.static(folds_warm_start(schedule, warm)):  # a step with an impact row does not fold (folds_this_step)
-        warm_here = ti.max(first, 1 - folds_this_step(rows))
-        warm_next = then_warm * folds_this_step(rows)
-    _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, warm_here)
-    if ti.static(schedule == BLOCKS):
-        rows.fast_push[None] = 0
-    _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h, substep)
-    positions_loop(bodies, awake, motion, h)
-    if ti.static(schedule == BLOCKS):
-        # a fast push: a second relax sweep, which then carries the next substep's warm start
-        extra = rows.fast_push[None]
-        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, warm_next * (1 - extra), gravity, h, substep)
-        sweep_blocks(s, rows, c, bodies, awake, kind, RELAX, friction, warm_next, gravity, h, substep, extra)
+    if ti.static(schedule == BLOCKS):  # loops and nothing between them (substep_loops.py says why)
+        fold = ti.static(folds_warm_start(schedule, warm))
+        jacobi_substep_loops(s, rows, c, bodies, awake, kind, friction, warm, fold, track, motion, h, first, then_warm,
+                             substep)
     else:
-        _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, warm_next, gravity, h, substep)
-    if ti.static(track):
-        add_step_impulses_loop(rows, c)
+        gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
+        _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
+        _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h, substep)
+        positions_loop(bodies, awake, motion, h)
+        _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h, substep)
+        if ti.static(track):
+            add_step_impulses_loop(rows, c)
 
 
 def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int) -> int:

@@ -1,0 +1,119 @@
+"""The Jacobi family's substep as a GPU launches it: loops, and nothing between them.
+
+Every top-level loop of a Taichi kernel is its own task, and so is every run of statements
+between two loops: a loop range read at run time (``range(count[None])``), a value computed for
+the loops after it, even the copies of a ``ti.func``'s value arguments. On the CPU such a serial
+task is a few instructions on the launching thread; on a GPU it is a single-thread launch of its
+own, 6-7 us on an H200, and the substep launched 9 of them beside its 9 loops (docs/bench.md,
+"The third CUDA run"). Here the substep's loops read every value themselves (gravity, the warm
+start switches, the fast-push flag), run to their buffers' capacities under CUDA's loop shapes
+(``backend.capacity_ranges``: each thread compares its index with the count), and take no value
+arguments at the top level (``ti.template()``: passed as expressions, evaluated inside the loops).
+The warm start's gather also clears the fast-push flag, and the biased sweep's gather advances
+the poses (each body's pose reads its own velocities only): 8 tasks per substep instead of 18,
+the same arithmetic in the same order, so the same bits (tests/test_dispatch.py).
+"""
+
+import taichi as ti
+
+from ..awake import body_id, body_total
+from ..backend import capacity_ranges
+from ..integrate import advance_pose, apply_gravity
+from .contact_spring import params_gravity
+from .mass_splitting import gather_body, sweep_block, warm_block
+from .rows import BIASED, RELAX
+from .step_impulses import add_step_impulse
+
+
+@ti.func
+def _upto(count: ti.template(), capacity: ti.template(), at_least_one: ti.template() = False):
+    """A top-level loop's range: the buffer's ``capacity``, a constant, under CUDA's loop
+    shapes; else ``count`` (at least 1 for a loop that must run once). Its arguments are
+    templates, so the call adds no statement before the loop."""
+    if ti.static(capacity_ranges()):
+        return capacity
+    elif ti.static(at_least_one):
+        return ti.max(count, 1)
+    else:
+        return count
+
+
+@ti.func
+def _body_count(bodies: ti.template(), awake: ti.template()):
+    """``awake.body_total`` as an expression, for a loop's range (a ``ti.func`` with a value
+    argument or a local variable would be a statement before the loop)."""
+    if ti.static(awake.compact):
+        return awake.body_count[None]
+    else:
+        return bodies.count[None]
+
+
+@ti.func
+def _warm_here(rows: ti.template(), first: ti.template(), fold: ti.template()) -> ti.i32:
+    """1: this substep does its own gravity and warm start (``first``, or any substep of a step
+    with an impact row: substep.folds_this_step)."""
+    here = first
+    if ti.static(fold):
+        here = ti.max(first, rows.impacts[None])
+    return here
+
+
+@ti.func
+def _warm_next(rows: ti.template(), then_warm: ti.template(), fold: ti.template()) -> ti.i32:
+    """1: this substep's last relax sweep carries the next one's gravity and warm start (never
+    in a step with an impact row)."""
+    nxt = then_warm
+    if ti.static(fold):
+        nxt = then_warm * (1 - rows.impacts[None])
+    return nxt
+
+
+@ti.func
+def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
+                         awake: ti.template(), kind: ti.template(), friction: ti.template(), warm: ti.template(),
+                         fold: ti.template(), track: ti.template(), motion: ti.template(), h: ti.template(),
+                         first: ti.template(), then_warm: ti.template(), substep: ti.template()):
+    """``substep.substep_parallel`` for the Jacobi family (its arguments, as expressions; a range
+    is written in each loop's header: a name assigned here would be a statement)."""
+    if ti.static(warm):
+        for k in range(_upto(s.block_count[None], s.block_capacity)):
+            if k < s.block_count[None] * _warm_here(rows, first, fold):
+                warm_block(s, rows, c, bodies, kind, friction, k)
+    for k in range(_upto(_body_count(bodies, awake), bodies.capacity, at_least_one=True)):
+        if k == 0:
+            rows.fast_push[None] = 0  # no block of the warm start reads it
+        if k < body_total(bodies, awake) * _warm_here(rows, first, fold):
+            if ti.static(warm):
+                gather_body(s, bodies, params_gravity(rows) * h, body_id(awake, k))
+            else:
+                apply_gravity(bodies, params_gravity(rows), h, body_id(awake, k))
+    for k in range(_upto(s.block_count[None], s.block_capacity)):
+        if k < s.block_count[None]:
+            if sweep_block(s, rows, c, bodies, kind, BIASED, friction, 0, k, substep):
+                rows.fast_push[None] = 1
+    for k in range(_upto(_body_count(bodies, awake), bodies.capacity)):
+        if k < body_total(bodies, awake):
+            i = body_id(awake, k)
+            gather_body(s, bodies, params_gravity(rows) * h * ti.cast(0, ti.f32), i)
+            advance_pose(bodies, motion, h, i)
+    # the relax sweep (a fast push: a second one, which then carries the next warm start);
+    # no relax block writes the flag, so every thread reads the biased sweep's
+    for k in range(_upto(s.block_count[None], s.block_capacity)):
+        if k < s.block_count[None]:
+            sweep_block(s, rows, c, bodies, kind, RELAX, friction,
+                        _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None]), k, substep)
+    for k in range(_upto(_body_count(bodies, awake), bodies.capacity)):
+        if k < body_total(bodies, awake):
+            carry = _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None])
+            gather_body(s, bodies, params_gravity(rows) * h * ti.cast(carry, ti.f32), body_id(awake, k))
+    for k in range(_upto(s.block_count[None], s.block_capacity)):
+        if k < s.block_count[None] * rows.fast_push[None]:
+            sweep_block(s, rows, c, bodies, kind, RELAX, friction, _warm_next(rows, then_warm, fold), k, substep)
+    for k in range(_upto(_body_count(bodies, awake), bodies.capacity)):
+        if k < body_total(bodies, awake) * rows.fast_push[None]:
+            carry = _warm_next(rows, then_warm, fold)
+            gather_body(s, bodies, params_gravity(rows) * h * ti.cast(carry, ti.f32), body_id(awake, k))
+    if ti.static(track):
+        for q in range(_upto(c.count[None], c.capacity)):
+            if q < c.count[None]:
+                add_step_impulse(rows, q)
