@@ -3,9 +3,11 @@
 # are worth per minute, each under its own time limit, every result also written to $OUT:
 #   OUT=/tmp/cuda bash benchmarks/cuda_check.sh
 # 1. ms/step by stage for the pyramid, the pile and the 5000-box scene (the first figures since
-# the non-finite checks left the position update, 2026-11-27); 2. the per-task profile of a
-# pile step; 3. the position update's launch, part by part; 4. the guard, hard-case, solver and
-# stacking tests on CUDA (stops at the fourth failure, tracebacks kept). About 8 minutes. Needs
+# the substep launch became its loops alone, d31e18e: 3.30 / 3.49 / 5.13 ms/step before, H200,
+# docs/bench.md "The third CUDA run"); 2. the per-task profile of a pile step (8 substep tasks
+# expected, none serial); 3. the position update's launch, part by part; 4. the guard,
+# hard-case, solver and stacking tests on CUDA (stops at the fourth failure, tracebacks kept;
+# 5.5 minutes in all on an H200, 2026-11-27). Needs
 # taichi importable (pip install -e ., or the device README's wheels on PYTHONPATH).
 set -u
 cd "$(dirname "$0")/.."
