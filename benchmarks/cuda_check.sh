@@ -4,27 +4,33 @@
 #   OUT=/tmp/cuda bash benchmarks/cuda_check.sh
 # 1. ms/step by stage for the pyramid, the pile and the 5000-box scene (the first figures since
 # the substep launch became its loops alone, d31e18e: 3.30 / 3.49 / 5.13 ms/step before, H200,
-# docs/bench.md "The third CUDA run"); 2. the per-task profile of a pile step (8 substep tasks
-# expected, none serial); 3. the position update's launch, part by part; 4. the guard,
-# hard-case, solver and stacking tests on CUDA (stops at the fourth failure, tracebacks kept;
-# 5.5 minutes in all on an H200, 2026-11-27). Needs
-# taichi importable (pip install -e ., or the device README's wheels on PYTHONPATH).
+# docs/bench.md "The third CUDA run"), and first the same for another tree when BASELINE names
+# one (a carried copy of an older commit: the two timed on the same card); 2. the per-task
+# profile of a pile step (8 substep tasks expected, none serial); 3. the engine tests most
+# likely to meet a GPU-only problem on CUDA (stops at the fourth failure, tracebacks kept).
+# About 7 minutes on an H200. Needs taichi importable (pip install -e ., or the device README's
+# wheels on PYTHONPATH).
 set -u
 cd "$(dirname "$0")/.."
 OUT=${OUT:-out/cuda}
 mkdir -p "$OUT"
-export PYTHONUNBUFFERED=1 PYTHONPATH="${PYTHONPATH:+$PYTHONPATH:}$PWD"
+SITE=${PYTHONPATH:-}
+export PYTHONUNBUFFERED=1 PYTHONPATH="${SITE:+$SITE:}$PWD"
 PY=${PY:-python3}
+BENCH=(benchmarks/step_bench.py --arch cuda --scenes pyramid_20,pile_1000,headline_pile_5000 --solvers mass-splitting,jacobi
+       --iterations 15 --settle 60 --steps 30)
 nvidia-smi -L 2>&1 | tee "$OUT/device.txt"
-timeout -k 10 120 "$PY" benchmarks/step_bench.py --arch cuda --scenes pyramid_20,pile_1000,headline_pile_5000 \
-    --solvers mass-splitting,jacobi --iterations 15 --settle 60 --steps 30 2>&1 | tee "$OUT/step_bench.txt"
+if [ -n "${BASELINE:-}" ]; then
+    (cd "$BASELINE" && PYTHONPATH="${SITE:+$SITE:}$PWD" timeout -k 10 120 "$PY" "${BENCH[@]}") 2>&1 \
+        | tee "$OUT/step_bench_baseline.txt"
+fi
+timeout -k 10 120 "$PY" "${BENCH[@]}" 2>&1 | tee "$OUT/step_bench.txt"
 timeout -k 10 60 "$PY" benchmarks/kernel_times.py --arch cuda --scene pile_1000 --settle 60 --steps 20 --tasks \
     > "$OUT/tasks.txt" 2>&1
 head -40 "$OUT/tasks.txt"
-timeout -k 10 60 "$PY" benchmarks/position_update_probe.py --arch cuda 2>&1 | tee "$OUT/probe.txt"
-SANDBOX_TEST_ARCH=cuda timeout -k 20 240 "$PY" -m pytest -q --tb=short -n 12 --maxfail=4 -p no:cacheprovider \
+SANDBOX_TEST_ARCH=cuda timeout -k 20 270 "$PY" -m pytest -q --tb=short -n 14 --maxfail=4 -p no:cacheprovider \
     -p no:benchmark tests/test_guard.py tests/test_hard_cases.py tests/test_solvers.py tests/test_stacking.py \
-    tests/solvers > "$OUT/pytest.txt" 2>&1
+    tests/solvers tests/test_sleeping.py tests/test_dispatch.py > "$OUT/pytest.txt" 2>&1
 status=$?
 tail -40 "$OUT/pytest.txt"
 exit $status
