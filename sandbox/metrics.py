@@ -9,14 +9,17 @@ Definitions follow method.md section 3: kinetic energy sum(1/2 m v^2 + 1/2 w.Iw)
 points found at the start of the step, as the anchor engines report them); the
 natural-map residual of the velocity-level LCP over all rows, normal rows
 |min(J_n u + b_n, K_nn lambda_n)| and friction rows the distance of lambda_t from
-its projected gradient step, reported as RMS and max [m/s]. The reductions use
-float atomics, so the last bits may vary run to run; they never feed back into
-the simulation, which stays bitwise repeatable.
+its projected gradient step, reported as RMS and max [m/s]. On the CPU the sums run in
+index order on one thread (``serialize_light_loops``), so a state's metrics are the same
+bits at every read: as parallel float atomics, 30 reads of one 1000-box state gave 14
+different triples (tests/test_metrics.py). A GPU keeps the atomics, whose order,
+and so the sums' last bits, vary; they never feed back into the simulation.
 """
 
 import numpy as np
 import taichi as ti
 
+from .backend import serialize_light_loops
 from .math3d import dot, mat_vec, quat_rotate_inv
 
 KE, MAX_PEN, SUM_PEN, RES_SQ_SUM, RES_MAX_SQ = range(5)
@@ -30,14 +33,17 @@ class MetricBuffer:
 
 @ti.kernel
 def compute_metrics(out: ti.template(), bodies: ti.template(), c: ti.template(), rows: ti.template()):
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(8):
         out.values[k] = 0.0
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(bodies.count[None]):
         if bodies.inv_mass[i] > 0.0:
             v = bodies.lin_vel[i]
             w = quat_rotate_inv(bodies.rot[i], bodies.ang_vel[i])
             ke = 0.5 * v.norm_sqr() / bodies.inv_mass[i] + 0.5 * dot(w, mat_vec(bodies.inertia[i], w))
             ti.atomic_add(out.values[KE], ke)
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for q in range(c.count[None]):
         pen = ti.max(-c.sep[q], 0.0)
         ti.atomic_max(out.values[MAX_PEN], pen)

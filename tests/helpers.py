@@ -77,10 +77,10 @@ def assert_same_state(expected: dict, actual: dict, label: str = "") -> None:
 
 
 def assert_same_metrics(expected: dict, actual: dict) -> None:
-    """Two ``World.metrics()`` dicts of worlds in the same state agree: bit for bit on the CPU;
-    on another backend the counts exactly and the float sums to float32 rounding (metrics.py sums
-    with float atomics, which a GPU commits in any order: the residual's last bits differed on an
-    H200, 2026-11-27, with the states equal)."""
+    """Two ``World.metrics()`` dicts of worlds in the same state agree: bit for bit on the CPU
+    (metrics.py sums in index order there); on another backend the counts exactly and the float
+    sums to float32 rounding (a GPU sums with float atomics, committed in any order: the
+    residual's last bits differed on an H200, 2026-11-27, with the states equal)."""
     assert expected.keys() == actual.keys()
     if TEST_ARCH == "cpu":
         assert expected == actual
