@@ -48,13 +48,13 @@ class ShapeList:
 
 @ti.func
 def body_total(bodies: ti.template(), awake: ti.template()) -> ti.i32:
-    """How many bodies a body loop visits (its range; ``body_id`` maps a position to a body)."""
-    n = 0
+    """How many bodies a body loop visits (its range; ``body_id`` maps a position to a body). An
+    expression, no local variable: a loop's range may call it without a statement before the loop
+    (solvers/substep_loops.py)."""
     if ti.static(awake.compact):
-        n = awake.body_count[None]
+        return awake.body_count[None]
     else:
-        n = bodies.count[None]
-    return n
+        return bodies.count[None]
 
 
 @ti.func

@@ -262,7 +262,7 @@ class Stepper:
         from .solvers.step_impulses import add_step_impulses
 
         b, p, k, sweeps, relax, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.relax, loop.awake
-        # a step with an impact row warm starts every substep in its own pass (substep.folds_this_step)
+        # a step with an impact row warm starts every substep in its own pass (impact_carry.folds_this_step)
         fold = schedule.folds_warm_start(loop.warm) and not int(b.rows.impacts[None])
         # the Jacobi family with Settings.relax_push_speed on: a fast push earns a second relax sweep,
         # which the host learns from a flag read per substep

@@ -22,7 +22,7 @@ from .awake import EVERY
 from .bodies import save_good_state_loops, update_world_inertia_loops
 from .broadphase import build_dynamic_grid_loops, compute_all_aabbs_loops, find_pairs_loops
 from .contacts import clear_contacts_loops, collide_pairs_loops
-from .integrate import BIG, check_bodies_loops, clear_error_flags
+from .integrate import check_bodies_loops, clear_error_flags
 from .manifold_cache import clear_cache_loops
 from .persistence import clear_history_loops, match_contact, store_contacts_loops
 from .sleep import rest_and_label_loops
@@ -43,8 +43,7 @@ def begin_and_collide(b: ti.template(), speculative: ti.template(), kinds: ti.te
     the heavy loops run, dispatch.py). Margin, slop, overlap depth, step and reuse bounds: ``b.scalars``."""
     f = ti.static(b.scalars.f)
     margin, slop, h = f[MARGIN], f[SLOP], f[STEP]
-    b.errors.flags[None] = 0
-    b.errors.body[None] = BIG
+    clear_error_flags(b.errors)
     save_good_state_loops(b.bodies, awake)
     update_world_inertia_loops(b.bodies, awake)
     build_dynamic_grid_loops(b.bp, b.shapes, b.bodies, margin, h, speculative, b.errors, awake, dispatch)

@@ -7,7 +7,7 @@ their impact speed, and only a Gauss-Seidel sweep takes it back in time, so unde
 schedules an inelastic cube left the ground at 20 % of its impact speed (docs/method-notes.md,
 "An inelastic impact bounced"). Resting and stacked rows are not impacts and keep the whole warm
 start; a step with no impact row folds the Jacobi family's warm start into the last relax sweep
-as before (solvers/substep.py, ``folds_this_step``), bit for bit.
+as before (``folds_this_step``), bit for bit.
 """
 
 import taichi as ti
@@ -35,9 +35,18 @@ def clear_impacts(rows: ti.template()):
 @ti.func
 def note_impact(rows: ti.template(), c: ti.template(), q: ti.i32):
     """While point q is prepared (its approach just measured): an impact row flags the step, so
-    its later substeps warm start in their own pass (substep.folds_this_step)."""
+    its later substeps warm start in their own pass (``folds_this_step``)."""
     if is_impact(rows, c, q):
         rows.impacts[None] = 1  # every impact row stores the same 1; clear_impacts cleared it
+
+
+@ti.func
+def folds_this_step(rows: ti.template()) -> ti.i32:
+    """1: a folding schedule's later substeps take gravity and warm start from the previous
+    relax sweep (substep.folds_warm_start); 0 in a step with an impact row: its carried impulse is
+    clamped against its bodies' merged velocities (``clamp_impact_carry``), which a block of the
+    relax sweep, on its own copies, never sees, so the warm start runs as its own pass."""
+    return 1 - rows.impacts[None]
 
 
 @ti.func

@@ -49,7 +49,7 @@ multiplies the velocity change written to the slot:
   both modes); one pass over the blocks fewer, and no per-point trip through the body's
   inertia. Not in a step with an impact row: its carried impulse is clamped against the
   merged velocities (impact_carry.clamp_impact_carry), so every substep warm starts in its own pass
-  (substep.folds_this_step).
+  (impact_carry.folds_this_step).
 """
 
 
@@ -417,7 +417,7 @@ def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
     """One Jacobi sweep over all blocks from the same velocities, then the per-body merge.
 
     ``then_warm`` (the last relax sweep of a substep that has a successor, in a step without an
-    impact row: substep.folds_this_step): the block's
+    impact row: impact_carry.folds_this_step): the block's
     impulses are final for this substep, so its slots also carry the next substep's warm
     start, and the gather adds the next substep's gravity: one block pass and two body
     passes fewer per substep than a separate gravity pass and warm-start pass. A biased

@@ -120,7 +120,7 @@ class Schedule:
     # ------------------------------------------------------------------ stage by stage
     def folds_warm_start(self, warm: bool) -> bool:
         """Gravity and warm start of a later substep ride on the previous relax sweep (in a step
-        without an impact row: substep.folds_this_step)."""
+        without an impact row: impact_carry.folds_this_step)."""
         return substep.folds_warm_start(self.visit, warm)
 
     def warm_start(self, buf, awake, friction: int, gravity, h: float) -> None:

@@ -38,6 +38,7 @@ from ..awake import body_id, body_total
 from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loop
 from . import team as tm
 from .contact_spring import params_gravity
+from .impact_carry import folds_this_step
 from .mass_splitting import gather_body, sweep_block, sweep_blocks, warm_block, warm_start_blocks
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX
@@ -80,14 +81,6 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
     there the velocities a later manifold sees would change)."""
     return warm and schedule == BLOCKS
 
-
-@ti.func
-def folds_this_step(rows: ti.template()) -> ti.i32:
-    """1: a folding schedule's later substeps take gravity and warm start from the previous
-    relax sweep; 0 in a step with an impact row (rows.impacts): its carried impulse is clamped
-    against its bodies' merged velocities (impact_carry.clamp_impact_carry), which a block of the
-    relax sweep, on its own copies, never sees, so the warm start runs as its own pass."""
-    return 1 - rows.impacts[None]
 
 
 @ti.func

@@ -20,6 +20,7 @@ from ..awake import body_id, body_total
 from ..backend import capacity_ranges
 from ..integrate import advance_pose, apply_gravity
 from .contact_spring import params_gravity
+from .impact_carry import folds_this_step
 from .mass_splitting import gather_body, sweep_block, warm_block
 from .rows import BIASED, RELAX
 from .step_impulses import add_step_impulse
@@ -39,22 +40,12 @@ def _upto(count: ti.template(), capacity: ti.template(), at_least_one: ti.templa
 
 
 @ti.func
-def _body_count(bodies: ti.template(), awake: ti.template()):
-    """``awake.body_total`` as an expression, for a loop's range (a ``ti.func`` with a value
-    argument or a local variable would be a statement before the loop)."""
-    if ti.static(awake.compact):
-        return awake.body_count[None]
-    else:
-        return bodies.count[None]
-
-
-@ti.func
 def _warm_here(rows: ti.template(), first: ti.template(), fold: ti.template()) -> ti.i32:
     """1: this substep does its own gravity and warm start (``first``, or any substep of a step
-    with an impact row: substep.folds_this_step)."""
+    with an impact row: impact_carry.folds_this_step)."""
     here = first
     if ti.static(fold):
-        here = ti.max(first, rows.impacts[None])
+        here = ti.max(first, 1 - folds_this_step(rows))
     return here
 
 
@@ -64,7 +55,7 @@ def _warm_next(rows: ti.template(), then_warm: ti.template(), fold: ti.template(
     in a step with an impact row)."""
     nxt = then_warm
     if ti.static(fold):
-        nxt = then_warm * (1 - rows.impacts[None])
+        nxt = then_warm * folds_this_step(rows)
     return nxt
 
 
@@ -79,7 +70,7 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
         for k in range(_upto(s.block_count[None], s.block_capacity)):
             if k < s.block_count[None] * _warm_here(rows, first, fold):
                 warm_block(s, rows, c, bodies, kind, friction, k)
-    for k in range(_upto(_body_count(bodies, awake), bodies.capacity, at_least_one=True)):
+    for k in range(_upto(body_total(bodies, awake), bodies.capacity, at_least_one=True)):
         if k == 0:
             rows.fast_push[None] = 0  # no block of the warm start reads it
         if k < body_total(bodies, awake) * _warm_here(rows, first, fold):
@@ -91,7 +82,7 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
         if k < s.block_count[None]:
             if sweep_block(s, rows, c, bodies, kind, BIASED, friction, 0, k, substep):
                 rows.fast_push[None] = 1
-    for k in range(_upto(_body_count(bodies, awake), bodies.capacity)):
+    for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
         if k < body_total(bodies, awake):
             i = body_id(awake, k)
             gather_body(s, bodies, params_gravity(rows) * h * ti.cast(0, ti.f32), i)
@@ -102,14 +93,14 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
         if k < s.block_count[None]:
             sweep_block(s, rows, c, bodies, kind, RELAX, friction,
                         _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None]), k, substep)
-    for k in range(_upto(_body_count(bodies, awake), bodies.capacity)):
+    for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
         if k < body_total(bodies, awake):
             carry = _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None])
             gather_body(s, bodies, params_gravity(rows) * h * ti.cast(carry, ti.f32), body_id(awake, k))
     for k in range(_upto(s.block_count[None], s.block_capacity)):
         if k < s.block_count[None] * rows.fast_push[None]:
             sweep_block(s, rows, c, bodies, kind, RELAX, friction, _warm_next(rows, then_warm, fold), k, substep)
-    for k in range(_upto(_body_count(bodies, awake), bodies.capacity)):
+    for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
         if k < body_total(bodies, awake) * rows.fast_push[None]:
             carry = _warm_next(rows, then_warm, fold)
             gather_body(s, bodies, params_gravity(rows) * h * ti.cast(carry, ti.f32), body_id(awake, k))
