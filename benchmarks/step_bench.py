@@ -2,6 +2,7 @@
 
     python benchmarks/step_bench.py [--scenes pyramid_20,pile_1000] [--solvers ...]
                                     [--iterations 15] [--settle 120] [--steps 120] [--arch cpu]
+                                    [--set NAME=VALUE ...]
 
 Protocol: build the world, run ``--settle`` steps (compiles every kernel and lets
 the scene reach a representative contact count), then time ``--steps`` steps
@@ -11,19 +12,21 @@ does not pay) and once without (whole-step wall time -> ms/step and steps/s, the
 to compare with other engines). ``loop`` is the iteration loop of the fast path (its
 launch(es) with a device sync on each side; where the step's set-up, solve and store are one
 launch, step_kernels.solve_step_in_order / solve_step_shared, that launch, set-up and store
-included) and ms/iter = loop / iterations. Compile time is reported apart.
+included) and ms/iter = loop / iterations. Compile time is reported apart. ``--set`` changes a
+``Settings`` field (a Python literal), e.g. ``--set ratio_sweeps=0`` for the cost of a switch.
 """
 
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
 import platform
 import time
 
 import taichi as ti
 
-from sandbox import SOLVERS, Scene, World
+from sandbox import SOLVERS, Scene, Settings, World
 from sandbox.scene.library import resolve_scene
 
 ITERATION_KERNELS = {"sandbox.solvers.substep": ("iterate_shared", "iterate_in_order", "substep_parallel"),
@@ -53,10 +56,12 @@ def _wrap(module, name: str) -> None:
     setattr(module, name, timed)
 
 
-def bench(scene_name: str, solver: str, iterations: int, settle: int, steps: int, arch: str) -> dict:
+def bench(scene_name: str, solver: str, iterations: int, settle: int, steps: int, arch: str,
+          changes: dict | None = None) -> dict:
     scene = Scene.load(resolve_scene(scene_name))
+    settings = Settings().replace(**{**scene.world.settings_given(), **changes}) if changes else None
     t0 = time.perf_counter()
-    world = World(scene, solver=solver, iterations=iterations, arch=arch, profile=False)
+    world = World(scene, solver=solver, iterations=iterations, arch=arch, profile=False, settings=settings)
     world.step(1)
     compile_s = time.perf_counter() - t0
     world.step(settle - 1)
@@ -89,10 +94,17 @@ def main() -> None:
     ap.add_argument("--settle", type=int, default=120)
     ap.add_argument("--steps", type=int, default=120)
     ap.add_argument("--arch", default="cpu")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="a Settings field")
     a = ap.parse_args()
+    changes = {}
+    for item in a.set:
+        name, _, value = item.partition("=")
+        changes[name] = ast.literal_eval(value)
+    Settings().replace(**changes)  # a wrong name or value fails here, before any world
     _time_iteration_kernels()
     print(f"# {platform.processor() or platform.machine()}, {platform.python_version()}, arch={a.arch}, "
-          f"iterations={a.iterations}, settle={a.settle}, timed steps={a.steps}")
+          f"iterations={a.iterations}, settle={a.settle}, timed steps={a.steps}"
+          + "".join(f", {k}={v!r}" for k, v in changes.items()))
     print(f"{'':54s}{'profiled, ms/step by stage':^34s}  {'fast path':^34s}")
     hdr = (f"{'scene':12s} {'solver':22s} {'bodies':>6s} {'contacts':>8s}  {'collide':>8s} {'prepare':>8s} "
            f"{'solve':>8s} {'integr':>7s}  {'loop':>7s} {'ms/iter':>8s} {'ms/step':>8s} {'steps/s':>8s} "
@@ -100,7 +112,7 @@ def main() -> None:
     print(hdr)
     for scene in a.scenes.split(","):
         for solver in a.solvers.split(","):
-            r = bench(scene, solver, a.iterations, a.settle, a.steps, a.arch)
+            r = bench(scene, solver, a.iterations, a.settle, a.steps, a.arch, changes)
             s = r["stages"]
             print(f"{scene:12s} {solver:22s} {r['bodies']:6d} {r['contacts']:8d}  {s['collide']:8.2f} "
                   f"{s['prepare']:8.2f} {s['solve']:8.2f} {s['integrate']:7.2f}  {r['loop_ms']:7.2f} "

@@ -29,18 +29,23 @@ SOFT_STEP, PAPER = "soft-step", "paper"
 @dataclass(frozen=True)
 class SweepPlan:
     """How one step's iteration loop runs: ``substeps`` of dt / substeps, each with
-    ``biased`` biased sweeps, the position update, then ``relax`` relax sweeps."""
+    ``biased`` biased sweeps, up to ``ratio`` more over the rows of bodies resting against far
+    heavier ones (Settings.ratio_sweeps: a step without such a pair runs none), the position
+    update, then ``relax`` relax sweeps."""
 
     substeps: int
     biased: int
     relax: int
+    ratio: int = 0
 
 
-def sweep_plan(formulation: str, iterations: int, sweeps: int) -> SweepPlan:
-    """The plan of a step with ``iterations`` solver iterations and ``Settings.sweeps``."""
+def sweep_plan(formulation: str, iterations: int, sweeps: int, ratio_sweeps: int = 0) -> SweepPlan:
+    """The plan of a step with ``iterations`` solver iterations, ``Settings.sweeps`` and, for a
+    schedule that takes them (the Jacobi family), ``Settings.ratio_sweeps`` (none under the paper
+    formulation: its solve is the paper's)."""
     if formulation == PAPER:
         return SweepPlan(substeps=1, biased=iterations * sweeps, relax=0)
-    return SweepPlan(substeps=iterations, biased=sweeps, relax=sweeps)
+    return SweepPlan(substeps=iterations, biased=sweeps, relax=sweeps, ratio=ratio_sweeps)
 
 
 def baumgarte_rate(settings, dt: float) -> float:

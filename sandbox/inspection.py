@@ -120,7 +120,7 @@ class StepInspection:
         """The problem the last sweep solved: rows.BIASED or rows.RELAX (RELAX when not paused)."""
         from .solvers.rows import BIASED, RELAX
 
-        return BIASED if self.sweep is not None and self.sweep.phase == "biased" else RELAX
+        return BIASED if self.sweep is not None and self.sweep.phase in ("biased", "extra biased") else RELAX
 
     def _compute_residuals(self) -> None:
         from .solvers.rows import compute_residuals

@@ -87,7 +87,8 @@ class Controls:
 @dataclass(frozen=True)
 class Sweep:
     """Where a paused step stands: after sweep ``index`` of ``count`` of the ``phase``
-    ("biased" or "relax") of substep ``substep`` of ``substeps``. ``carries_warm_start``: this
+    ("biased", "extra biased": the Jacobi family's sweeps of light bodies' blocks,
+    Settings.ratio_sweeps, or "relax") of substep ``substep`` of ``substeps``. ``carries_warm_start``: this
     relax sweep also applied the next substep's gravity and warm start (the Jacobi family)."""
 
     substep: int
@@ -123,7 +124,7 @@ class Stepper:
         if c.effects.sleeping and self.edits.buf.sleep.idle:
             return
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
-        plan = sweep_plan(s.formulation, c.iterations, s.sweeps)
+        plan = sweep_plan(s.formulation, c.iterations, s.sweeps, c.schedule.ratio_sweeps(s))
         # the once-per-step stages in three launches, or two (step_kernels.py); a profiler timing
         # stage by stage launches them one by one, one timing launch by launch keeps them (profile.py)
         fused = self.fused and not (p.enabled and p.per_stage)
@@ -154,7 +155,7 @@ class Stepper:
                 if launch == "one":
                     step_kernels.solve_step_in_order(b, switches, awake, self.edits.dispatch)
                 else:
-                    crew = sc.team(plan.substeps, plan.biased, plan.relax)
+                    crew = sc.team(plan.substeps, plan.biased, plan.relax, plan.ratio)
                     step_kernels.solve_step_shared(b, switches, *crew, awake, self.edits.dispatch)
         else:
             yield from self._solve_in_launches(c, b, awake, plan, h, launch, fused, watch, track, step_count, pause)
@@ -172,7 +173,7 @@ class Stepper:
         k = plan.substeps
         friction = contact_switch(c.effects)
         loop = Loop(b, friction, s.warm_start > 0.0, track, ti.math.vec3(*c.gravity), h / k, k, plan.biased,
-                    plan.relax, awake, motion_switch(c.effects))
+                    plan.relax, awake, motion_switch(c.effects), plan.ratio)
         with p.stage("prepare"):
             if fused:
                 sc = c.schedule
@@ -209,7 +210,9 @@ class Stepper:
         ``from_numpy`` calls three kernel instances to load at a world's first step)."""
         key = (b, s, c.schedule, h, plan, *c.gravity)
         if key != self._constants_key:
-            params = row_params(s, h / plan.substeps, plan.biased, h, c.gravity, c.schedule.info.stiffens_rocking)
+            info = c.schedule.info
+            params = row_params(s, h / plan.substeps, plan.biased, h, c.gravity, info.stiffens_rocking, plan.ratio,
+                                info.stiffens_light_rows)
             floats, ints = step_scalar_values(s, c.schedule.relaxation(s), h, plan)
             write_rows([(b.rows.params, 0, np.asarray(params)), (b.scalars.f, 0, np.asarray(floats)),
                         (b.scalars.i, 0, np.asarray(ints))])
@@ -284,6 +287,13 @@ class Stepper:
                         self.residual_history.append(residual_rms(b, BIASED))
                     if pause:
                         yield Sweep(i, k, "biased", j, sweeps, False)
+                extra = int(b.blocks.ratio_sweeps[None]) if loop.ratio else 0  # light bodies' (Settings.ratio_sweeps)
+                for j in range(extra):
+                    schedule.sweep(b, awake, BIASED, loop.friction, substep=i, light_only=1)
+                    if record_residuals:
+                        self.residual_history.append(residual_rms(b, BIASED))
+                    if pause:
+                        yield Sweep(i, k, "extra biased", j, extra, False)
             with p.stage("integrate_positions"):
                 integrate_positions(b.bodies, awake, loop.motion, loop.h)
             with p.stage("relax"):

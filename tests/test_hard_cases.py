@@ -19,9 +19,10 @@ KNOWN_FAILURES = {
     # CPU machine, with the preload (solvers/contact_spring.py): it turned 23 cells of the matrix
     # from FAIL to PASS (1:100 at 4 iterations, 1:1000 and the 1 mm cubes at 15, the 20-box stack
     # at 4 with mass splitting) and none the other way.
+    # since 2026-11-27 the Jacobi family sweeps a light body's blocks twice more per substep (Settings.ratio_sweeps):
+    # mass splitting and Jacobi hold the column from 8 iterations (61.5 mm before), block mass splitting from 15
     ("heavy_on_light_1to1000", "*@4"): "at 4 iterations the PGS family and block mass splitting tip the column "
-                                       "(3.9-4.7 m), mass splitting and Jacobi let the 1000 kg top sink 0.6-0.7 m",
-    ("heavy_on_light_1to1000", "block-mass-splitting@15"): "the 1000 kg top drifts 24.6 mm at 15 iterations",
+                                       "(3.7-4.4 m), mass splitting and Jacobi let the 1000 kg top sink 159-169 mm",
     ("stack_3_of_0.001m", "*@4"): "1 mm cubes sink 0.8-1 mm at 4 iterations (criterion 5 % of the size)",
     ("stack_3_of_0.001m", "block-mass-splitting@15"): "the top 1 mm cube drifts 0.1 mm at 15 iterations "
                                                       "(criterion 0.02 mm)",

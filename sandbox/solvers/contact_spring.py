@@ -23,7 +23,8 @@ took):
    force of the body the contact holds up (the upward component of all its support
    impulses, averaged over ``contact_load_time``) shared equally among that body's support
    points (``mass_splitting.update_support``): what the body weighs, with what it carries;
-3. the stability limit of the schedule: ``omega h <= kappa sqrt(S K / K~)``.
+3. the stability limit of the schedule: ``omega h <= kappa sqrt(S K / K~)`` (S with a light
+   body's extra sweeps under mass splitting and Jacobi: light_bodies.py).
 
 Why the limit (docs/method-notes.md, "Why low iteration counts blew up"): a sweep steps a
 row by ``dl = -(J v + b + gamma lambda) / (K~ + gamma)``, where K~ is the response the
@@ -73,8 +74,8 @@ from ..math3d import dot
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
  UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z, PRELOAD, PRELOAD_LAG,
- RELAX_PUSH, OVERLAP_PUSH, SPLIT_BOUND, ROCKING) = range(24)
-PARAM_COUNT = 24
+ RELAX_PUSH, OVERLAP_PUSH, SPLIT_BOUND, ROCKING, RATIO_LIMIT, RATIO_MASS, RATIO_SWEEPS) = range(27)
+PARAM_COUNT = 27
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
 deflection [1], the support average's blend per step [1], the step [s], the up
@@ -88,18 +89,24 @@ the paper formulation, which has no relax sweeps), the push-out cap of a pair fo
 [m/s] (Settings.overlap_push_speed), and the relaxation mass splitting's convergence bound takes
 [1] (Settings.split_relaxation; 1, the paper's plain average, under the paper formulation), which
 projected Jacobi's global factor takes for its busiest body (mass_splitting.py), and the most a
-row's rocking stiffness may exceed its capped spring [1] (Settings.contact_rocking_stiffness)."""
+row's rocking stiffness may exceed its capped spring [1] (Settings.contact_rocking_stiffness), and
+for the rows of a body resting against a far heavier one, their kappa sqrt(S) [1] with their extra
+sweeps counted, the mass ratio that marks them [1] and their extra sweeps per substep [1]
+(Settings.ratio_sweeps, ratio_mass; 0 sweeps: none this step, formulation.SweepPlan.ratio)."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
 
 
 
-def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: bool = True) -> list[float]:
+def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: bool = True,
+               ratio_sweeps: int = 0, light_stiffer: bool = True) -> list[float]:
     """This step's ``Rows.params`` values from ``settings`` for substeps of ``h`` [s] with
     ``sweeps`` biased and as many relax sweeps each, in steps of ``dt`` [s], under ``gravity``
     [m/s^2] (step.py writes them into ``Rows.params``); ``rocking``: the schedule stiffens a face's
-    rocking (SolverInfo.stiffens_rocking)."""
+    rocking (SolverInfo.stiffens_rocking); ``ratio_sweeps``: the biased sweeps more of the rows of a
+    body resting against a far heavier one (formulation.SweepPlan.ratio), whose springs take the
+    limit of ``sweeps`` + that many sweeps when ``light_stiffer`` (SolverInfo.stiffens_light_rows)."""
 
     values = [0.0] * PARAM_COUNT
     values[INV_H] = 1.0 / h
@@ -124,6 +131,10 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: boo
     values[OVERLAP_PUSH] = settings.overlap_push_speed
     values[SPLIT_BOUND] = settings.split_relaxation if settings.formulation != PAPER else 1.0
     values[ROCKING] = settings.contact_rocking_stiffness if rocking else 0.0
+    light_sweeps = sweeps + (ratio_sweeps if light_stiffer else 0)
+    values[RATIO_LIMIT] = settings.contact_stiffness_limit * math.sqrt(2.0 * light_sweeps)
+    values[RATIO_MASS] = settings.ratio_mass
+    values[RATIO_SWEEPS] = float(ratio_sweeps)
     return values
 
 
@@ -141,17 +152,19 @@ def params_gravity(rows: ti.template()) -> ti.math.vec3:
 
 
 @ti.func
-def row_omega(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, size: ti.f32):
+def row_omega(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, size: ti.f32, ratio: ti.i32):
     """(omega, the omega asked for before the stability limit) [rad/s] of a row with unsplit
     response ``k_true``, the schedule's ``k_split``, averaged normal force ``load`` [N] and pair
-    size ``size`` [m] (module docstring)."""
+    size ``size`` [m] (module docstring); ``ratio`` = 1: a row its body's far heavier neighbour
+    earns extra sweeps, and the limit those sweeps carry (Settings.ratio_sweeps)."""
     omega = params[OMEGA]
     deflection = params[DEFLECTION] * size
     if deflection > 0.0 and load > 0.0:
         omega = ti.max(omega, ti.sqrt(load * k_true / deflection))
     wanted = omega
     if params[STIFFNESS_LIMIT] > 0.0:
-        omega = ti.min(omega, params[STIFFNESS_LIMIT] * ti.sqrt(k_true / k_split) * params[INV_H])
+        limit = params[RATIO_LIMIT] if ratio else params[STIFFNESS_LIMIT]
+        omega = ti.min(omega, limit * ti.sqrt(k_true / k_split) * params[INV_H])
     return omega, wanted
 
 
@@ -180,18 +193,18 @@ def spring(params: ti.template(), omega: ti.f32, k_true: ti.f32):
 
 @ti.func
 def row_spring(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, slow_load: ti.f32,
-               size: ti.f32):
+               size: ti.f32, ratio: ti.i32):
     """(bias rate [1/s], compliance gamma, preload [N s], rocking share [1]) of a normal row: the
     soft step's spring with the preload that carries ``slow_load`` [N] beyond what the spring holds
     within the deflection and the face's rocking stiffness (rocking_share), or under the paper
     formulation a rigid row (gamma 0, no preload, no rocking share) whose bias removes
-    ``baumgarte`` of the depth per step."""
+    ``baumgarte`` of the depth per step. ``ratio``: row_omega."""
     rate = params[BAUMGARTE_RATE]
     gamma = 0.0
     preload = 0.0
     rocking = 0.0
     if rate <= 0.0:
-        omega, wanted = row_omega(params, k_true, k_split, load, size)
+        omega, wanted = row_omega(params, k_true, k_split, load, size, ratio)
         rate, gamma = spring(params, omega, k_true)
         rocking = rocking_share(params, omega, wanted)
         if params[DEFLECTION] > 0.0:

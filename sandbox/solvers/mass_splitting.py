@@ -50,6 +50,8 @@ multiplies the velocity change written to the slot:
   inertia. Not in a step with an impact row: its carried impulse is clamped against the
   merged velocities (impact_carry.clamp_impact_carry), so every substep warm starts in its own pass
   (impact_carry.folds_this_step).
+* light bodies: a body resting against one ``Settings.ratio_mass`` times heavier has its blocks
+  swept ``Settings.ratio_sweeps`` more times per substep (light_bodies.py says why).
 """
 
 
@@ -62,6 +64,7 @@ from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, PRELOAD_LAG, RELAX_PUSH,
                              RESTITUTION_THRESHOLD, SPLIT_BOUND, STEP_DT, support_push)
 from .impact_carry import clamp_impact_carry
+from .light_bodies import gather_light_body, list_light_block, list_light_body, mark_light, reset_light_lists
 from .rolling import rolling_impulse
 from .normal_target import pushes_fast
 from .rows import BIASED, ROLLING, point_impulse, solve_point
@@ -97,6 +100,15 @@ class BlockScratch:
         self.weight = ti.field(ti.f32, nb)
         self.scale_idle = ti.field(ti.f32, nb)  # of the body's other blocks (idle_split)
         self.global_scale = ti.field(ti.f32, ())  # MODE_JACOBI_BOUNDED's one factor, this step
+        self.body_capacity = nb
+        # light bodies and their blocks' extra sweeps (light_bodies.py)
+        self.light = ti.field(ti.i32, nb)  # 1: the body rests against one ratio_mass times heavier
+        self.block_light = ti.field(ti.i32, bc)  # 1: one of the block's bodies is light
+        self.light_blocks = ti.field(ti.i32, bc)  # the blocks of light bodies, in no set order
+        self.light_block_count = ti.field(ti.i32, ())
+        self.light_bodies = ti.field(ti.i32, nb)  # the bodies those blocks touch, in no set order
+        self.light_body_count = ti.field(ti.i32, ())
+        self.ratio_sweeps = ti.field(ti.i32, ())  # this step's extra sweeps of those blocks (0: none)
         self.scanner = Scanner(nb + 1)
 
 
@@ -156,23 +168,29 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
                           kind: ti.template(), mode: ti.template(), omega: ti.f32):
     """Each dynamic body's sorted block endpoints, its split count and its scale and weight
     (module docstring; under ``MODE_JACOBI_BOUNDED`` every body takes ``global_scale``, the
-    busiest body's split). Reads this step's rows and warm-start impulses (the split count)."""
+    busiest body's split), and the light bodies, whose blocks that can act take this step's
+    extra sweeps (Settings.ratio_sweeps: ``ratio_sweeps`` is their count, 0 without one). Reads
+    this step's rows and warm-start impulses (the split count)."""
     nb = bodies.count[None]
     nk = n_blocks(c, kind)
     s.block_count[None] = nk
+    reset_light_lists(s)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(nb):
         s.adj_count[i] = 0
         s.adj_fill[i] = 0
         s.active_count[i] = 0
         s.fresh_count[i] = 0
+        s.light[i] = 0
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(nk):
         _, _, a, b = block_range(c, k, kind)
-        act = 0
+        act = 1
         fresh = 0
         if ti.static(mode != MODE_JACOBI):
             act, fresh = _block_can_act(c, rows, k, kind)
+        if act:
+            mark_light(s, rows, bodies, a, b)
         if ti.static(mode != MODE_SPLIT):
             act = 1  # one global factor: every block counted
         start, count, _, _ = block_range(c, k, kind)
@@ -190,6 +208,7 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(nk):
         _, _, a, b = block_range(c, k, kind)
+        list_light_block(s, k, a, b)
         if bodies.inv_mass[a] > 0.0:
             s.adj[s.adj_start[a] + ti.atomic_add(s.adj_fill[a], 1)] = 2 * k
         if bodies.inv_mass[b] > 0.0:
@@ -199,6 +218,7 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for i in range(nb):
         sort_range(s.adj, s.adj_start[i], s.adj_start[i + 1])
+        list_light_body(s, rows, i)
         if ti.static(mode == MODE_JACOBI_BOUNDED):  # max is exact in any order: the same bits
             relax = rows.params[SPLIT_BOUND] if s.fresh_count[i] == 0 else 1.0
             ti.atomic_max(s.global_scale[None], ti.cast(s.adj_count[i], ti.f32) / relax)
@@ -441,3 +461,21 @@ def jacobi_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
                  kind: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, gravity: vec3,
                  h: ti.f32, substep: ti.i32):
     sweep_blocks(s, rows, c, bodies, awake, kind, mode, friction, then_warm, gravity, h, substep)
+
+
+@ti.func
+def sweep_light_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
+                       kind: ti.template(), friction: ti.template(), substep: ti.i32):
+    """An extra biased sweep (Settings.ratio_sweeps): the blocks of light bodies alone, then their
+    bodies add those blocks' slots (light_bodies.py)."""
+    for j in range(s.light_block_count[None]):
+        if sweep_block(s, rows, c, bodies, kind, BIASED, friction, 0, s.light_blocks[j], substep):
+            rows.fast_push[None] = 1
+    for j in range(s.light_body_count[None]):
+        gather_light_body(s, bodies, s.light_bodies[j])
+
+
+@ti.kernel
+def light_sweep(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+                friction: ti.template(), substep: ti.i32):
+    sweep_light_blocks(s, rows, c, bodies, kind, friction, substep)

@@ -200,7 +200,8 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     k = sa * rows.k_a[q] + sb * rows.k_b[q]
     k_true = rows.k_a[q][0] + rows.k_b[q][0]
     load, slow_load = supported_load(rows.params, c, bodies, q)
-    rate, gamma, preload, rocking = row_spring(rows.params, k_true, k[0], load, slow_load, c.size[q])
+    ratio = scale.light[a] | scale.light[b]  # its extra sweeps' limit (mass_splitting.light_block)
+    rate, gamma, preload, rocking = row_spring(rows.params, k_true, k[0], load, slow_load, c.size[q], ratio)
     rows.rate[q] = rate
     rows.gamma[q] = gamma
     rows.preload[q] = preload

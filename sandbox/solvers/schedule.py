@@ -67,6 +67,7 @@ class Loop:
     relax: int  # relax sweeps per substep (0 under the paper formulation)
     awake: object  # which bodies the body loops visit: awake.EVERY, or a sleeping world's awake lists
     motion: int = 1  # the position update's switches (integrate.motion_switch: gyroscopic, damping)
+    ratio: int = 0  # extra biased sweeps of light bodies' blocks per substep, at most (formulation.SweepPlan)
 
 
 class Schedule:
@@ -92,6 +93,11 @@ class Schedule:
         if name == "split_relaxation" and settings.formulation == PAPER:
             return 1.0
         return float(getattr(settings, name)) if name else 1.0
+
+    def ratio_sweeps(self, settings) -> int:
+        """Settings.ratio_sweeps for the Jacobi family, whose split sweep moves a heavy body's load
+        into a light one a share at a time; 0 for the PGS solvers."""
+        return settings.ratio_sweeps if self.visit == substep.BLOCKS else 0
 
     def adjacency_args(self, buf, settings) -> tuple:
         """(block scratch, kind, mode, omega, scaled responses): the schedule's arguments of
@@ -129,9 +135,10 @@ class Schedule:
                                   h)
 
     def sweep(self, buf, awake, mode: int, friction: int, then_warm: int = 0, gravity=None, h: float = 0.0,
-              substep: int = 0) -> None:
+              substep: int = 0, light_only: int = 0) -> None:
         """One pass over every contact row (``then_warm``: mass_splitting.sweep_blocks), in substep
-        ``substep`` of the step (visit_order.visited_point)."""
+        ``substep`` of the step (visit_order.visited_point); ``light_only``: over the blocks of light
+        bodies only (an extra sweep of the Jacobi family, Settings.ratio_sweeps)."""
         rows, c, bodies = buf.rows, buf.contacts, buf.bodies
         if self.info.visit == "serial":
             pgs.pgs_serial(rows, c, bodies, mode, friction, substep)
@@ -146,6 +153,8 @@ class Schedule:
             if starts[overflow + 1] > starts[overflow]:
                 pgs.solve_overflow(rows, c, bodies, col, int(starts[overflow]), int(starts[overflow + 1]), mode,
                                    friction, substep)
+        elif light_only:
+            mass_splitting.light_sweep(buf.blocks, rows, c, bodies, self.kind, friction, substep)
         else:
             g = gravity if gravity is not None else ti.math.vec3(0.0)
             mass_splitting.jacobi_sweep(buf.blocks, rows, c, bodies, awake, self.kind, mode, friction, then_warm, g, h,
@@ -192,21 +201,22 @@ class Schedule:
         if launch == "one":
             substep.iterate_in_order(*self._loop_args(loop), loop.iterations, loop.sweeps, loop.relax)
         elif launch == "shared":
-            crew, members = self.team(loop.iterations, loop.sweeps, loop.relax)
+            crew, members = self.team(loop.iterations, loop.sweeps, loop.relax, loop.ratio)
             substep.iterate_shared(crew, *self._loop_args(loop), loop.iterations, loop.sweeps, loop.relax, members)
         elif launch == "per-substep":
             fold = self.folds_warm_start(loop.warm)
             k = loop.iterations
             for i in range(k):
                 warm_here, then_warm = int(i == 0 or not fold), int(fold and i < k - 1)
-                substep.substep_parallel(*self._loop_args(loop), warm_here, then_warm, i)
+                substep.substep_parallel(*self._loop_args(loop), warm_here, then_warm, i, loop.ratio)
         else:
             raise ValueError(f"iterate: {launch!r} is not a fused launch")
 
-    def team(self, substeps: int, biased: int, relax: int) -> tuple:
+    def team(self, substeps: int, biased: int, relax: int, ratio: int = 0) -> tuple:
         """(the thread team whose counters cover a shared iteration loop of ``substeps``
-        substeps with ``biased`` and ``relax`` sweeps each, its member count)."""
-        phases = substep.shared_phase_bound(self.visit, substeps, biased, relax)
+        substeps with ``biased`` (and up to ``ratio`` more) and ``relax`` sweeps each, its member
+        count)."""
+        phases = substep.shared_phase_bound(self.visit, substeps, biased, relax, ratio)
         members = team.cpu_threads()
         return team.team_for(phases, members), members
 

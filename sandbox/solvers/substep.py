@@ -39,7 +39,8 @@ from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loo
 from . import team as tm
 from .contact_spring import params_gravity
 from .impact_carry import folds_this_step
-from .mass_splitting import gather_body, sweep_block, sweep_blocks, warm_block, warm_start_blocks
+from .light_bodies import gather_light_body
+from .mass_splitting import gather_body, sweep_block, sweep_blocks, sweep_light_blocks, warm_block, warm_start_blocks
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX
 from .step_impulses import add_step_impulse, add_step_impulses_loop
@@ -84,12 +85,23 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
 
 
 @ti.func
+def ratio_sweeps_now(s: ti.template(), schedule: ti.template()) -> ti.i32:
+    """This step's extra biased sweeps of light bodies' blocks (Settings.ratio_sweeps, counted by
+    mass_splitting.build_adjacency; 0 in a step without a light body): the Jacobi family's only."""
+    extra = 0
+    if ti.static(schedule == BLOCKS):
+        extra = s.ratio_sweeps[None]
+    return extra
+
+
+@ti.func
 def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
                            warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
                            h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32):
     """All ``iterations`` substeps of ``h``, everything in order on one thread: ``sweeps`` biased
-    and ``relax`` relax sweeps each (formulation.sweep_plan; one relax sweep more after a fast
-    push under the Jacobi family, Settings.relax_push_speed). ``track``: each substep's impulses
+    and ``relax`` relax sweeps each (formulation.sweep_plan; under the Jacobi family the extra
+    sweeps of light bodies' blocks after the biased ones, ratio_sweeps_now, and one relax sweep
+    more after a fast push, Settings.relax_push_speed). ``track``: each substep's impulses
     are added to the step's (``rows.lam_step``). ``b``: the world's BufferSet (one template
     argument instead of six: step_kernels.py says why)."""
     s, rows, c, bodies, col = b.blocks, b.rows, b.contacts, b.bodies, b.coloring
@@ -105,6 +117,8 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
             rows.fast_push[None] = 0
         for _sb in range(sweeps):
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h, it)
+        for _e in range(ratio_sweeps_now(s, schedule)):
+            sweep_light_blocks(s, rows, c, bodies, kind, friction, it)
         positions_loop(bodies, awake, motion, h)
         n_relax = relax
         if ti.static(schedule == BLOCKS):
@@ -129,9 +143,10 @@ def iterate_in_order(b: ti.template(), kind: ti.template(), schedule: ti.templat
 @ti.kernel
 def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
                      warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
-                     h: ti.f32, first: ti.i32, then_warm: ti.i32, substep: ti.i32):
-    """One substep of ``h`` with one sweep each (the Jacobi family: a second relax sweep after a
-    fast push, Settings.relax_push_speed; its loops run zero times otherwise), every phase's
+                     h: ti.f32, first: ti.i32, then_warm: ti.i32, substep: ti.i32, ratio: ti.template()):
+    """One substep of ``h`` with one sweep each (the Jacobi family: up to ``ratio`` extra biased
+    sweeps of light bodies' blocks, Settings.ratio_sweeps, and a second relax sweep after a fast
+    push, Settings.relax_push_speed; their loops run zero times otherwise), every phase's
     loops parallel, in one launch. ``first``: this substep does its own gravity and warm start;
     ``then_warm``: its last relax sweep does the next one's (both 1 / 0 decided by
     ``Schedule.iterate`` with ``folds_warm_start``; a step with an impact row overrides them
@@ -142,7 +157,7 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     if ti.static(schedule == BLOCKS):  # loops and nothing between them (substep_loops.py says why)
         fold = ti.static(folds_warm_start(schedule, warm))
         jacobi_substep_loops(s, rows, c, bodies, awake, kind, friction, warm, fold, track, motion, h, first, then_warm,
-                             substep)
+                             substep, ratio)
     else:
         gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
         _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
@@ -153,26 +168,29 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
             add_step_impulses_loop(rows, c)
 
 
-def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int) -> int:
+def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int, ratio: int = 0) -> int:
     """Most phases ``iterate_shared`` walks (its team needs counters per phase; the Jacobi
-    family's substeps may relax once more, Settings.relax_push_speed)."""
+    family's substeps may sweep light bodies' blocks ``ratio`` times more and advance the poses
+    after them, Settings.ratio_sweeps, and relax once more, Settings.relax_push_speed)."""
     if schedule == PGS_COLORED:
         per_sweep = MAX_COLORS + 1  # every colour, then the overflow colour
         return iterations * ((sweeps + relax) * per_sweep + 4)
-    return iterations * (2 * (sweeps + relax + 1) + 3)
+    return iterations * (2 * (sweeps + ratio + relax + 1) + 4)
 
 
 @ti.func
 def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
                  rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
                  mode: ti.template(), friction: ti.template(), then_warm: ti.i32, warm_only: ti.template(),
-                 substep: ti.i32 = 0, fast_slot: ti.i32 = 0) -> ti.i32:
+                 substep: ti.i32 = 0, fast_slot: ti.i32 = 0, listed: ti.template() = False) -> ti.i32:
     """Phase p over all blocks: their warm start, or one sweep (a biased one marks a fast push
-    in ``team.fast[fast_slot]``, _team_member). Returns the next phase."""
-    n = s.block_count[None]
+    in ``team.fast[fast_slot]``, _team_member); ``listed``: over light bodies' blocks only (an
+    extra sweep, light_bodies.py). Returns the next phase."""
+    n = s.light_block_count[None] if ti.static(listed) else s.block_count[None]
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
     while lo < hi:
-        for k in range(lo, hi):
+        for idx in range(lo, hi):
+            k = s.light_blocks[idx] if ti.static(listed) else idx
             if ti.static(warm_only):
                 warm_block(s, rows, c, bodies, kind, friction, k)
             elif sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k, substep):
@@ -183,20 +201,23 @@ def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
     return p + 1
 
 
-GATHER, GRAVITY, POSE, GATHER_POSE = 0, 1, 2, 3
+GATHER, GRAVITY, POSE, GATHER_POSE, GATHER_LIGHT = 0, 1, 2, 3, 4
 """What a body phase does to each body: add its slots (and ``dv_extra``), add gravity,
-advance its pose, or add its slots and then advance its pose."""
+advance its pose, add its slots and then advance its pose, or (a listed body only) add its
+light blocks' slots (light_bodies.py)."""
 
 
 @ti.func
 def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
                 bodies: ti.template(), awake: ti.template(), motion: ti.template(),
                 what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32) -> ti.i32:
-    n = body_total(bodies, awake)
+    n = s.light_body_count[None] if ti.static(what == GATHER_LIGHT) else body_total(bodies, awake)
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
     while lo < hi:
         for k in range(lo, hi):
-            i = body_id(awake, k)
+            i = s.light_bodies[k] if ti.static(what == GATHER_LIGHT) else body_id(awake, k)
+            if ti.static(what == GATHER_LIGHT):
+                gather_light_body(s, bodies, i)
             if ti.static(what == GATHER or what == GATHER_POSE):
                 gather_body(s, bodies, dv_extra, i)
             if ti.static(what == GRAVITY):
@@ -297,9 +318,18 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
                 p = _body_phase(team, p, member, members, s, bodies, awake, motion, GRAVITY, vec3(0.0),
                                 gravity, h)
         fast_slot = p  # this substep's biased phases mark a fast push here; read once they are all done
+        extra = ratio_sweeps_now(s, schedule)  # the same for every member: set before the loop
         for sb in range(sweeps):
             p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
-                              BIASED, friction, 0, int(sb == sweeps - 1), gravity, h, it, fast_slot)
+                              BIASED, friction, 0, int(sb == sweeps - 1 and extra == 0), gravity, h, it, fast_slot)
+        if ti.static(schedule == BLOCKS):
+            for _e in range(extra):
+                p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, False, it,
+                                 fast_slot, True)
+                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_LIGHT, vec3(0.0),
+                                gravity, h)
+            if extra > 0:
+                p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
         n_relax = relax
         if ti.static(schedule == BLOCKS):
             n_relax = relax + ti.atomic_add(team.fast[fast_slot], 0)  # the same for every member: never reset in a loop
