@@ -71,13 +71,15 @@ class Settings:
     ratio_sweeps: int = 2
     """[1] Biased sweeps more per substep, under the Jacobi family (projected Jacobi, mass splitting,
     block mass splitting), for the contacts of a body resting against one ``ratio_mass`` times
-    heavier or more: those rows alone are swept again, and their springs take the stiffness limit of
-    ``sweeps`` + this many sweeps (``contact_stiffness_limit``). Why: a split sweep moves a heavy
-    body's load into a light one by a 1 / n_b share per sweep, and the capped spring that one sweep
-    can hold lets a 1000 kg box on 100, 10 and 1 kg boxes sink 61.5 mm at 8 iterations; the rows
-    need both the sweeps and the stiffness those sweeps carry (either alone: 58-962 mm;
-    docs/method-notes.md, "The 1:1000 column at 8 iterations"). A scene without such a pair runs
-    none (0 turns them off). Ignored by the PGS solvers and under the paper formulation."""
+    heavier or more: those rows alone are swept again, and under mass splitting and Jacobi their
+    springs take the stiffness limit of ``sweeps`` + this many sweeps, + 2 at most
+    (``contact_stiffness_limit``, contact_spring.LIGHT_LIMIT_SWEEPS). Why: a split sweep moves a
+    heavy body's load into a light one by a 1 / n_b share per sweep, and the capped spring that one
+    sweep can hold lets a 1000 kg box on 100, 10 and 1 kg boxes sink 61.5 mm at 8 iterations; the
+    rows need both the sweeps and the stiffness those sweeps carry (either alone: 58-962 mm;
+    docs/method-notes.md, "The 1:1000 column at 8 iterations"). 2: 15.9 mm there; 3 and 6: 11.5 and
+    9.2 mm, at more cost in scenes with such pairs. A scene without such a pair runs none (0 turns
+    them off). Ignored by the PGS solvers and under the paper formulation."""
 
     ratio_mass: float = 5.0
     """[1] Mass ratio at which the lighter body of a touching pair of dynamic bodies has its
