@@ -13,6 +13,8 @@ from dataclasses import dataclass, fields
 
 ITERATION_LAUNCHES = ("auto", "shared", "one", "per-substep", "per-stage")
 FORMULATIONS = ("soft-step", "paper")
+MAX_RATIO_SWEEPS = 8
+"""The most ``ratio_sweeps`` a world takes: a GPU's per-substep launch unrolls them."""
 
 
 @dataclass(frozen=True)
@@ -83,7 +85,7 @@ class Settings:
 
     ratio_mass: float = 5.0
     """[1] Mass ratio at which the lighter body of a touching pair of dynamic bodies has its
-    contacts swept ``ratio_sweeps`` times more (>= 1)."""
+    contacts swept ``ratio_sweeps`` times more (> 1: of two equal masses neither is lighter)."""
 
     contact_rocking_stiffness: float = 1.5
     """[1] How much stiffer than its capped spring a contact face is against rocking, at most:
@@ -341,7 +343,8 @@ class Settings:
                                         ("baumgarte", 0.0, 1.0, True),
                                         ("idle_split", 0.0, 1.0, False),
                                         ("restitution_tolerance", 0.0, math.inf, False),
-                                        ("restitution_threshold", 0.0, math.inf, False)):
+                                        ("restitution_threshold", 0.0, math.inf, False),
+                                        ("ratio_mass", 1.0, math.inf, False)):
             value = getattr(self, name)
             above = value >= low if closed else value > low
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and above
@@ -350,15 +353,11 @@ class Settings:
 
                 span = f"{'>=' if closed else '>'} {low:g}" + (f" and < {high:g}" if high != math.inf else "")
                 raise SandboxError(f"{name} must be a finite number {span}, got {value!r}")
-        if isinstance(self.ratio_sweeps, bool) or not isinstance(self.ratio_sweeps, int) or self.ratio_sweeps < 0:
+        sweeps = self.ratio_sweeps
+        if isinstance(sweeps, bool) or not isinstance(sweeps, int) or not 0 <= sweeps <= MAX_RATIO_SWEEPS:
             from .errors import SandboxError
 
-            raise SandboxError(f"ratio_sweeps must be a whole number >= 0, got {self.ratio_sweeps!r}")
-        ratio = self.ratio_mass
-        if isinstance(ratio, bool) or not isinstance(ratio, (int, float)) or not (math.isfinite(ratio) and ratio >= 1.0):
-            from .errors import SandboxError
-
-            raise SandboxError(f"ratio_mass must be a finite number >= 1, got {ratio!r}")
+            raise SandboxError(f"ratio_sweeps must be a whole number in [0, {MAX_RATIO_SWEEPS}], got {sweeps!r}")
         share = self.contact_preload
         if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0:
             from .errors import SandboxError

@@ -265,6 +265,7 @@ class Stepper:
         from .solvers.step_impulses import add_step_impulses
 
         b, p, k, sweeps, relax, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.relax, loop.awake
+        extra = int(b.blocks.light_sweeps[None]) if loop.ratio else 0  # light bodies' (Settings.ratio_sweeps)
         # a step with an impact row warm starts every substep in its own pass (impact_carry.folds_this_step)
         fold = schedule.folds_warm_start(loop.warm) and not int(b.rows.impacts[None])
         # the Jacobi family with Settings.relax_push_speed on: a fast push earns a second relax sweep,
@@ -287,7 +288,6 @@ class Stepper:
                         self.residual_history.append(residual_rms(b, BIASED))
                     if pause:
                         yield Sweep(i, k, "biased", j, sweeps, False)
-                extra = int(b.blocks.ratio_sweeps[None]) if loop.ratio else 0  # light bodies' (Settings.ratio_sweeps)
                 for j in range(extra):
                     schedule.sweep(b, awake, BIASED, loop.friction, substep=i, light_only=1)
                     if record_residuals:

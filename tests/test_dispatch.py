@@ -44,7 +44,8 @@ def test_cuda_never_runs_serially():
 CUDA_SHAPE_CASES = ("stack_20-mass-splitting-60", "stack_20-block-mass-splitting-60", "stack_20-pgs-colored-60",
                     "playground-mass-splitting-60", "mass_ratio_stacks-mass-splitting-60")
 """Both split schedules, the per-colour launches, the web's default scene (mixed shapes,
-sleeping) and light bodies' extra sweeps (solvers/light_bodies.py). On 2026-11-26 all 31 quick cases were run this way and matched (docs/bench.md)."""
+sleeping) and light bodies' extra sweeps (solvers/light_bodies.py, added 2026-11-27). On
+2026-11-26 all 31 quick cases were run this way and matched (docs/bench.md)."""
 
 CHILD = """
 import sys

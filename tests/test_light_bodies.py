@@ -30,7 +30,7 @@ def test_extra_sweeps_give_the_same_bits_in_every_launch(solver):
         world = World(scene, solver=solver, iterations=4, arch=TEST_ARCH, settings=Settings(iteration_launch=launch))
         world.step(30)
         blocks = world.buf.blocks
-        assert int(blocks.ratio_sweeps[None]) == Settings().ratio_sweeps
+        assert int(blocks.light_sweeps[None]) == Settings().ratio_sweeps
         light = blocks.light.to_numpy()[: world.buf.bodies.count[None]]
         assert set(np.flatnonzero(light)) == {0, 1, 2}  # the column below its 1000 kg top
         assert 0 < int(blocks.light_block_count[None]) < int(blocks.block_count[None])
@@ -52,7 +52,7 @@ def test_a_world_without_a_mass_ratio_runs_no_extra_sweep(solver):
         for sweeps in (Settings().ratio_sweeps, 0):
             world = World(scene, solver=solver, iterations=4, arch=TEST_ARCH, settings=Settings(ratio_sweeps=sweeps))
             world.step(30)
-            assert int(world.buf.blocks.ratio_sweeps[None]) == 0
+            assert int(world.buf.blocks.light_sweeps[None]) == 0
             assert int(world.buf.blocks.light_block_count[None]) == 0
             states.append(world.state())
         for key in states[0]:
@@ -66,3 +66,13 @@ def test_the_1to1000_column_stands_at_8_iterations(solver):
     (docs/method-notes.md, "The 1:1000 column at 8 iterations")."""
     result = run_case(heavy_on_light(1000), solver, 8, arch=TEST_ARCH)
     assert result.passed, result.figures
+
+
+@pytest.mark.parametrize("change", [{"ratio_sweeps": -1}, {"ratio_sweeps": 9}, {"ratio_sweeps": 1.5},
+                                    {"ratio_sweeps": True}, {"ratio_mass": 1.0}, {"ratio_mass": float("nan")}])
+def test_bad_light_body_settings_are_named(change):
+    from sandbox import SandboxError
+
+    name = next(iter(change))
+    with pytest.raises(SandboxError, match=name):
+        Settings(**change)

@@ -23,8 +23,8 @@ took):
    force of the body the contact holds up (the upward component of all its support
    impulses, averaged over ``contact_load_time``) shared equally among that body's support
    points (``mass_splitting.update_support``): what the body weighs, with what it carries;
-3. the stability limit of the schedule: ``omega h <= kappa sqrt(S K / K~)`` (S with a light
-   body's extra sweeps under mass splitting and Jacobi: light_bodies.py).
+3. the stability limit of the schedule: ``omega h <= kappa sqrt(S K / K~)`` (a light body's rows
+   under mass splitting and Jacobi take a stiffer one, measured: LIGHT_LIMIT_SWEEPS).
 
 Why the limit (docs/method-notes.md, "Why low iteration counts blew up"): a sweep steps a
 row by ``dl = -(J v + b + gamma lambda) / (K~ + gamma)``, where K~ is the response the
@@ -74,7 +74,7 @@ from ..math3d import dot
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
  UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z, PRELOAD, PRELOAD_LAG,
- RELAX_PUSH, OVERLAP_PUSH, SPLIT_BOUND, ROCKING, RATIO_LIMIT, RATIO_MASS, RATIO_SWEEPS) = range(27)
+ RELAX_PUSH, OVERLAP_PUSH, SPLIT_BOUND, ROCKING, LIGHT_LIMIT, RATIO_MASS, RATIO_SWEEPS) = range(27)
 PARAM_COUNT = 27
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
@@ -95,8 +95,10 @@ sweeps counted, the mass ratio that marks them [1] and their extra sweeps per su
 (Settings.ratio_sweeps, ratio_mass; 0 sweeps: none this step, formulation.SweepPlan.ratio)."""
 
 LIGHT_LIMIT_SWEEPS = 2
-"""The most of a light body's extra sweeps (Settings.ratio_sweeps) its rows' stability limit counts.
-Measured on the 1:1000 column under mass splitting at 8 iterations (late penetration, criterion
+"""The most of a light body's extra sweeps (Settings.ratio_sweeps) its rows' stability limit counts:
+they take the limit ``row_params`` gives a substep of ``sweeps`` + that many sweeps of each kind,
+kappa sqrt(2 (1 + 2)) at the defaults. A measured choice, not the module's argument, which counts
+the sweeps a substep gives those rows (1 + 2 biased and 1 relax: kappa sqrt(4)). Measured on the 1:1000 column under mass splitting at 8 iterations (late penetration, criterion
 20 mm): with the limit of 1 + 2 sweeps, 2 / 3 / 6 extra sweeps leave 15.9 / 11.5 / 9.2 mm; with a
 limit that counts every extra sweep, 3 / 4 / 6 leave 107.9 / 91.1 / 70.6 mm, and one that counts
 all but one, 4 / 5 / 6 leave 7.6 / 6.0 / 64.8 mm: past about three sweeps' limit the stiffer
@@ -141,7 +143,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: boo
     values[SPLIT_BOUND] = settings.split_relaxation if settings.formulation != PAPER else 1.0
     values[ROCKING] = settings.contact_rocking_stiffness if rocking else 0.0
     light_sweeps = sweeps + (min(ratio_sweeps, LIGHT_LIMIT_SWEEPS) if light_stiffer else 0)
-    values[RATIO_LIMIT] = settings.contact_stiffness_limit * math.sqrt(2.0 * light_sweeps)
+    values[LIGHT_LIMIT] = settings.contact_stiffness_limit * math.sqrt(2.0 * light_sweeps)
     values[RATIO_MASS] = settings.ratio_mass
     values[RATIO_SWEEPS] = float(ratio_sweeps)
     return values
@@ -161,18 +163,18 @@ def params_gravity(rows: ti.template()) -> ti.math.vec3:
 
 
 @ti.func
-def row_omega(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, size: ti.f32, ratio: ti.i32):
+def row_omega(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, size: ti.f32, light: ti.i32):
     """(omega, the omega asked for before the stability limit) [rad/s] of a row with unsplit
     response ``k_true``, the schedule's ``k_split``, averaged normal force ``load`` [N] and pair
-    size ``size`` [m] (module docstring); ``ratio`` = 1: a row its body's far heavier neighbour
-    earns extra sweeps, and the limit those sweeps carry (Settings.ratio_sweeps)."""
+    size ``size`` [m] (module docstring); ``light`` = 1: a light body's row, swept more and
+    limited as LIGHT_LIMIT_SWEEPS says (Settings.ratio_sweeps)."""
     omega = params[OMEGA]
     deflection = params[DEFLECTION] * size
     if deflection > 0.0 and load > 0.0:
         omega = ti.max(omega, ti.sqrt(load * k_true / deflection))
     wanted = omega
     if params[STIFFNESS_LIMIT] > 0.0:
-        limit = params[RATIO_LIMIT] if ratio else params[STIFFNESS_LIMIT]
+        limit = params[LIGHT_LIMIT] if light else params[STIFFNESS_LIMIT]
         omega = ti.min(omega, limit * ti.sqrt(k_true / k_split) * params[INV_H])
     return omega, wanted
 
@@ -202,18 +204,18 @@ def spring(params: ti.template(), omega: ti.f32, k_true: ti.f32):
 
 @ti.func
 def row_spring(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f32, slow_load: ti.f32,
-               size: ti.f32, ratio: ti.i32):
+               size: ti.f32, light: ti.i32):
     """(bias rate [1/s], compliance gamma, preload [N s], rocking share [1]) of a normal row: the
     soft step's spring with the preload that carries ``slow_load`` [N] beyond what the spring holds
     within the deflection and the face's rocking stiffness (rocking_share), or under the paper
     formulation a rigid row (gamma 0, no preload, no rocking share) whose bias removes
-    ``baumgarte`` of the depth per step. ``ratio``: row_omega."""
+    ``baumgarte`` of the depth per step. ``light``: row_omega."""
     rate = params[BAUMGARTE_RATE]
     gamma = 0.0
     preload = 0.0
     rocking = 0.0
     if rate <= 0.0:
-        omega, wanted = row_omega(params, k_true, k_split, load, size, ratio)
+        omega, wanted = row_omega(params, k_true, k_split, load, size, light)
         rate, gamma = spring(params, omega, k_true)
         rocking = rocking_share(params, omega, wanted)
         if params[DEFLECTION] > 0.0:

@@ -7,10 +7,11 @@ iterations under mass splitting (docs/method-notes.md, "The 1:1000 column at 8 i
 So the lighter body of a touching pair of dynamic bodies whose masses differ
 ``Settings.ratio_mass``-fold or more is marked *light*; every block of a light body (its pairs
 with the heavy body, the ground, its neighbours) is swept ``Settings.ratio_sweeps`` more times
-per substep after the biased sweep, and its rows take the stability limit of those sweeps
-(contact_spring.row_omega, SolverInfo.stiffens_light_rows). The extra sweeps visit listed
-blocks and bodies only, so a scene without such a pair pays nothing and a pile with one small
-box under a big one pays for that box's blocks.
+per substep after the biased sweep, and under mass splitting and Jacobi its rows take a
+stiffer stability limit (contact_spring.LIGHT_LIMIT_SWEEPS, SolverInfo.stiffens_light_rows).
+The extra sweeps visit listed blocks and bodies only, so on the CPU a scene without such a pair
+pays nothing and a pile with one small box under a big one pays for that box's blocks; a GPU's
+per-substep launch runs their unrolled loops empty (substep_loops.py).
 
 The lists are filled with atomic counters, in no set order: each listed block writes its own
 two slots and each listed body adds its slots in its adjacency's fixed order, so the order of
@@ -21,7 +22,6 @@ import taichi as ti
 
 from .contact_spring import RATIO_MASS, RATIO_SWEEPS
 
-vec3 = ti.math.vec3
 
 
 @ti.func
@@ -29,7 +29,7 @@ def reset_light_lists(s: ti.template()):
     """Empty lists and no extra sweep, before build_adjacency's loops fill them."""
     s.light_block_count[None] = 0
     s.light_body_count[None] = 0
-    s.ratio_sweeps[None] = 0
+    s.light_sweeps[None] = 0
 
 
 @ti.func
@@ -46,9 +46,15 @@ def mark_light(s: ti.template(), rows: ti.template(), bodies: ti.template(), a: 
 
 
 @ti.func
+def light_pair(s: ti.template(), a: ti.i32, b: ti.i32) -> ti.i32:
+    """1: a block or row of bodies a and b takes the extra sweeps (one of them is light)."""
+    return s.light[a] | s.light[b]
+
+
+@ti.func
 def list_light_block(s: ti.template(), k: ti.i32, a: ti.i32, b: ti.i32):
     """Block k (bodies a and b) is listed for the extra sweeps when one of its bodies is light."""
-    light = s.light[a] | s.light[b]
+    light = light_pair(s, a, b)
     s.block_light[k] = light
     if light:
         s.light_blocks[ti.atomic_add(s.light_block_count[None], 1)] = k
@@ -64,19 +70,4 @@ def list_light_body(s: ti.template(), rows: ti.template(), i: ti.i32):
     if touched:
         s.light_bodies[ti.atomic_add(s.light_body_count[None], 1)] = i
     if s.light[i]:
-        ti.atomic_max(s.ratio_sweeps[None], ti.cast(rows.params[RATIO_SWEEPS], ti.i32))
-
-
-@ti.func
-def gather_light_body(s: ti.template(), bodies: ti.template(), i: ti.i32):
-    """Listed body i adds the slots of its listed blocks, in their fixed order (the others hold
-    the biased sweep's changes, already added)."""
-    dv = vec3(0.0)
-    dw = vec3(0.0)
-    for e in range(s.adj_start[i], s.adj_start[i + 1]):
-        slot = s.adj[e]
-        if s.block_light[slot // 2]:
-            dv += s.slot_dv[slot]
-            dw += s.slot_dw[slot]
-    bodies.lin_vel[i] += dv
-    bodies.ang_vel[i] += dw
+        ti.atomic_max(s.light_sweeps[None], ti.cast(rows.params[RATIO_SWEEPS], ti.i32))

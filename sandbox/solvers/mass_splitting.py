@@ -64,7 +64,7 @@ from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .contact_spring import (BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, INV_H, LOAD_BLEND, PRELOAD_LAG, RELAX_PUSH,
                              RESTITUTION_THRESHOLD, SPLIT_BOUND, STEP_DT, support_push)
 from .impact_carry import clamp_impact_carry
-from .light_bodies import gather_light_body, list_light_block, list_light_body, mark_light, reset_light_lists
+from .light_bodies import list_light_block, list_light_body, mark_light, reset_light_lists
 from .rolling import rolling_impulse
 from .normal_target import pushes_fast
 from .rows import BIASED, ROLLING, point_impulse, solve_point
@@ -108,7 +108,7 @@ class BlockScratch:
         self.light_block_count = ti.field(ti.i32, ())
         self.light_bodies = ti.field(ti.i32, nb)  # the bodies those blocks touch, in no set order
         self.light_body_count = ti.field(ti.i32, ())
-        self.ratio_sweeps = ti.field(ti.i32, ())  # this step's extra sweeps of those blocks (0: none)
+        self.light_sweeps = ti.field(ti.i32, ())  # this step's extra sweeps of those blocks (0: none)
         self.scanner = Scanner(nb + 1)
 
 
@@ -168,9 +168,10 @@ def build_adjacency_loops(s: ti.template(), c: ti.template(), bodies: ti.templat
                           kind: ti.template(), mode: ti.template(), omega: ti.f32):
     """Each dynamic body's sorted block endpoints, its split count and its scale and weight
     (module docstring; under ``MODE_JACOBI_BOUNDED`` every body takes ``global_scale``, the
-    busiest body's split), and the light bodies, whose blocks that can act take this step's
-    extra sweeps (Settings.ratio_sweeps: ``ratio_sweeps`` is their count, 0 without one). Reads
-    this step's rows and warm-start impulses (the split count)."""
+    busiest body's split), and the light bodies (marked in the blocks that can act; under a fixed
+    Jacobi relaxation, MODE_JACOBI, in every block), all of whose blocks take this step's extra
+    sweeps (Settings.ratio_sweeps; ``light_sweeps`` is their count, 0 without a light body:
+    light_bodies.py). Reads this step's rows and warm-start impulses (the split count)."""
     nb = bodies.count[None]
     nk = n_blocks(c, kind)
     s.block_count[None] = nk
@@ -301,17 +302,27 @@ def update_support(s: ti.template(), c: ti.template(), rows: ti.template(), bodi
 
 
 @ti.func
-def gather_body(s: ti.template(), bodies: ti.template(), dv_extra: vec3, i: ti.i32):
+def gather_body(s: ti.template(), bodies: ti.template(), dv_extra: vec3, i: ti.i32, listed: ti.template() = False):
     """Dynamic body i adds its slots in their fixed order, then ``dv_extra`` (gravity of
-    the next substep when a relax sweep carries its warm start, else zero)."""
+    the next substep when a relax sweep carries its warm start, else zero). ``listed``: an
+    extra sweep's gather, the slots of light bodies' blocks only (the others hold the biased
+    sweep's changes, already added; light_bodies.py), and no ``dv_extra``."""
     if bodies.inv_mass[i] > 0.0:
         dv = vec3(0.0)
         dw = vec3(0.0)
         for e in range(s.adj_start[i], s.adj_start[i + 1]):
             slot = s.adj[e]
-            dv += s.slot_dv[slot]
-            dw += s.slot_dw[slot]
-        bodies.lin_vel[i] = bodies.lin_vel[i] + dv_extra + dv  # gravity first, as its own pass did
+            if ti.static(listed):
+                if s.block_light[slot // 2]:
+                    dv += s.slot_dv[slot]
+                    dw += s.slot_dw[slot]
+            else:
+                dv += s.slot_dv[slot]
+                dw += s.slot_dw[slot]
+        if ti.static(listed):
+            bodies.lin_vel[i] += dv
+        else:
+            bodies.lin_vel[i] = bodies.lin_vel[i] + dv_extra + dv  # gravity first, as its own pass did
         bodies.ang_vel[i] += dw
 
 
@@ -472,7 +483,7 @@ def sweep_light_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), 
         if sweep_block(s, rows, c, bodies, kind, BIASED, friction, 0, s.light_blocks[j], substep):
             rows.fast_push[None] = 1
     for j in range(s.light_body_count[None]):
-        gather_light_body(s, bodies, s.light_bodies[j])
+        gather_body(s, bodies, vec3(0.0), s.light_bodies[j], True)
 
 
 @ti.kernel

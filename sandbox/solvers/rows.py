@@ -54,6 +54,7 @@ from .contact_spring import PARAM_COUNT, RESTITUTION_THRESHOLD, row_spring, supp
 from .impact_carry import clear_impacts, note_impact
 from .normal_target import BIASED, RELAX, RESTITUTION, normal_target  # noqa: F401  (the sweep modes live there)
 from .rolling import respond_rolling, solve_rolling
+from .light_bodies import light_pair
 from .split_scales import block_scales
 
 vec3 = ti.math.vec3
@@ -200,8 +201,8 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     k = sa * rows.k_a[q] + sb * rows.k_b[q]
     k_true = rows.k_a[q][0] + rows.k_b[q][0]
     load, slow_load = supported_load(rows.params, c, bodies, q)
-    ratio = scale.light[a] | scale.light[b]  # its extra sweeps' limit (mass_splitting.light_block)
-    rate, gamma, preload, rocking = row_spring(rows.params, k_true, k[0], load, slow_load, c.size[q], ratio)
+    light = light_pair(scale, a, b)  # a light body's row: its extra sweeps' limit (light_bodies.py)
+    rate, gamma, preload, rocking = row_spring(rows.params, k_true, k[0], load, slow_load, c.size[q], light)
     rows.rate[q] = rate
     rows.gamma[q] = gamma
     rows.preload[q] = preload

@@ -39,7 +39,6 @@ from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loo
 from . import team as tm
 from .contact_spring import params_gravity
 from .impact_carry import folds_this_step
-from .light_bodies import gather_light_body
 from .mass_splitting import gather_body, sweep_block, sweep_blocks, sweep_light_blocks, warm_block, warm_start_blocks
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX
@@ -85,12 +84,12 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
 
 
 @ti.func
-def ratio_sweeps_now(s: ti.template(), schedule: ti.template()) -> ti.i32:
+def light_sweeps_now(s: ti.template(), schedule: ti.template()) -> ti.i32:
     """This step's extra biased sweeps of light bodies' blocks (Settings.ratio_sweeps, counted by
     mass_splitting.build_adjacency; 0 in a step without a light body): the Jacobi family's only."""
     extra = 0
     if ti.static(schedule == BLOCKS):
-        extra = s.ratio_sweeps[None]
+        extra = s.light_sweeps[None]
     return extra
 
 
@@ -100,7 +99,7 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
                            h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32):
     """All ``iterations`` substeps of ``h``, everything in order on one thread: ``sweeps`` biased
     and ``relax`` relax sweeps each (formulation.sweep_plan; under the Jacobi family the extra
-    sweeps of light bodies' blocks after the biased ones, ratio_sweeps_now, and one relax sweep
+    sweeps of light bodies' blocks after the biased ones, light_sweeps_now, and one relax sweep
     more after a fast push, Settings.relax_push_speed). ``track``: each substep's impulses
     are added to the step's (``rows.lam_step``). ``b``: the world's BufferSet (one template
     argument instead of six: step_kernels.py says why)."""
@@ -117,8 +116,9 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
             rows.fast_push[None] = 0
         for _sb in range(sweeps):
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h, it)
-        for _e in range(ratio_sweeps_now(s, schedule)):
-            sweep_light_blocks(s, rows, c, bodies, kind, friction, it)
+        if ti.static(schedule == BLOCKS):
+            for _e in range(light_sweeps_now(s, schedule)):
+                sweep_light_blocks(s, rows, c, bodies, kind, friction, it)
         positions_loop(bodies, awake, motion, h)
         n_relax = relax
         if ti.static(schedule == BLOCKS):
@@ -217,7 +217,7 @@ def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32,
         for k in range(lo, hi):
             i = s.light_bodies[k] if ti.static(what == GATHER_LIGHT) else body_id(awake, k)
             if ti.static(what == GATHER_LIGHT):
-                gather_light_body(s, bodies, i)
+                gather_body(s, bodies, dv_extra, i, True)
             if ti.static(what == GATHER or what == GATHER_POSE):
                 gather_body(s, bodies, dv_extra, i)
             if ti.static(what == GRAVITY):
@@ -318,7 +318,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
                 p = _body_phase(team, p, member, members, s, bodies, awake, motion, GRAVITY, vec3(0.0),
                                 gravity, h)
         fast_slot = p  # this substep's biased phases mark a fast push here; read once they are all done
-        extra = ratio_sweeps_now(s, schedule)  # the same for every member: set before the loop
+        extra = light_sweeps_now(s, schedule)  # the same for every member: set before the loop
         for sb in range(sweeps):
             p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
                               BIASED, friction, 0, int(sb == sweeps - 1 and extra == 0), gravity, h, it, fast_slot)

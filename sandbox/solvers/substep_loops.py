@@ -21,7 +21,6 @@ from ..backend import capacity_ranges
 from ..integrate import advance_pose, apply_gravity
 from .contact_spring import params_gravity
 from .impact_carry import folds_this_step
-from .light_bodies import gather_light_body
 from .mass_splitting import gather_body, sweep_block, warm_block
 from .rows import BIASED, RELAX
 from .step_impulses import add_step_impulse
@@ -68,9 +67,11 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
                          ratio: ti.template()):
     """``substep.substep_parallel`` for the Jacobi family (its arguments, as expressions; a range
     is written in each loop's header: a name assigned here would be a statement). ``ratio``: the
-    most extra sweeps of light bodies' blocks (Settings.ratio_sweeps), unrolled: this step's
-    count (``s.ratio_sweeps``, 0 or ``ratio``) decides whether their loops run and where the
-    poses advance."""
+    extra sweeps of light bodies' blocks (Settings.ratio_sweeps, formulation.SweepPlan.ratio),
+    unrolled: 2 ``ratio`` + 1 loops more, which run empty in a step without a light body. This
+    step's count ``s.light_sweeps`` is 0 or ``ratio`` (written from the same plan's row
+    parameters, light_bodies.list_light_body) and decides whether they run and where the poses
+    advance."""
     if ti.static(warm):
         for k in range(_upto(s.block_count[None], s.block_capacity)):
             if k < s.block_count[None] * _warm_here(rows, first, fold):
@@ -91,22 +92,22 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
         if k < body_total(bodies, awake):
             i = body_id(awake, k)
             gather_body(s, bodies, params_gravity(rows) * h * ti.cast(0, ti.f32), i)
-            if s.ratio_sweeps[None] == 0:
+            if s.light_sweeps[None] == 0:
                 advance_pose(bodies, motion, h, i)
     for e in ti.static(range(ratio)):  # light bodies' blocks, listed (light_bodies.py)
         for j in range(_upto(s.light_block_count[None], s.block_capacity)):
-            if j < s.light_block_count[None] * ti.cast(s.ratio_sweeps[None] > e, ti.i32):
+            if j < s.light_block_count[None] * ti.cast(s.light_sweeps[None] > e, ti.i32):
                 if sweep_block(s, rows, c, bodies, kind, BIASED, friction, 0, s.light_blocks[j], substep):
                     rows.fast_push[None] = 1
         for j in range(_upto(s.light_body_count[None], s.body_capacity)):
-            if j < s.light_body_count[None] * ti.cast(s.ratio_sweeps[None] > e, ti.i32):
-                gather_light_body(s, bodies, s.light_bodies[j])
+            if j < s.light_body_count[None] * ti.cast(s.light_sweeps[None] > e, ti.i32):
+                gather_body(s, bodies, ti.math.vec3(0.0), s.light_bodies[j], True)
     if ti.static(ratio > 0):
         for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
-            if k < body_total(bodies, awake) * ti.cast(s.ratio_sweeps[None] > 0, ti.i32):
+            if k < body_total(bodies, awake) * ti.cast(s.light_sweeps[None] > 0, ti.i32):
                 advance_pose(bodies, motion, h, body_id(awake, k))
     # the relax sweep (a fast push: a second one, which then carries the next warm start);
-    # no relax block writes the flag, so every thread reads the biased sweep's
+    # no relax block writes the flag, so every thread reads the biased and extra sweeps'
     for k in range(_upto(s.block_count[None], s.block_capacity)):
         if k < s.block_count[None]:
             sweep_block(s, rows, c, bodies, kind, RELAX, friction,
