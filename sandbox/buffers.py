@@ -24,7 +24,7 @@ from .manifold_cache import ManifoldCache
 from .metrics import MetricBuffer
 from .persistence import ContactHistory
 from .shapes import PolytopePool, ShapeTable
-from .solvers.mass_splitting import BlockScratch
+from .solvers.block_adjacency import BlockScratch
 from .solvers.pgs import Coloring
 from .solvers.rows import Rows
 from .step_scalars import StepScalars

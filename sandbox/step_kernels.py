@@ -27,7 +27,8 @@ from .manifold_cache import clear_cache_loops
 from .persistence import clear_history_loops, match_contact, store_contacts_loops
 from .sleep import rest_and_label_loops
 from .solvers.impact_carry import clear_impacts
-from .solvers.mass_splitting import build_adjacency_loops, update_support_loops
+from .solvers.block_adjacency import build_adjacency_loops
+from .solvers.mass_splitting import update_support_loops
 from .solvers.rows import prepare_row, respond_row
 from .solvers.substep import iterate_in_order_loops, iterate_shared_loops
 from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, OVERLAP_DEPTH, RELAX_SWEEPS, RELAXATION, REUSE_D2,

@@ -33,7 +33,7 @@ KNOWN_FAILURES = {
                                            "the faces' rocking stiffness, Settings.contact_rocking_stiffness)",
     ("friction_arch", "block-mass-splitting@4"): "a voussoir slips 25 mm at 4 iterations",
     # projected Jacobi takes its busiest body's split as its one global factor since 2026-11-26
-    # (mass_splitting.MODE_JACOBI_BOUNDED): the card house stands from 15 iterations instead of flying
+    # (block_adjacency.MODE_JACOBI_BOUNDED): the card house stands from 15 iterations instead of flying
     # apart at every count, and the 27-box block and the overlapping boxes, whose busiest bodies touch at
     # 68 and 24 points, step as softly as that body everywhere
     ("leaning_planks", "jacobi@4"): "the card house collapses at 4 iterations (a plank moves 0.52 m, peak 4.0 m/s)",

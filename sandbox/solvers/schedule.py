@@ -20,11 +20,11 @@ from dataclasses import dataclass
 import taichi as ti
 
 from ..formulation import PAPER
-from . import SOLVERS, mass_splitting, pgs, step_impulses, substep, team
+from . import SOLVERS, block_adjacency, mass_splitting, pgs, step_impulses, substep, team
 from . import rows as contact_rows
 
 _VISIT = {"serial": substep.PGS, "colored": substep.PGS_COLORED, "blocks": substep.BLOCKS}
-_BLOCK = {"point": mass_splitting.PER_POINT, "manifold": mass_splitting.PER_MANIFOLD}
+_BLOCK = {"point": block_adjacency.PER_POINT, "manifold": block_adjacency.PER_MANIFOLD}
 ONE_THREAD_BODY_LIMIT = 64
 """On the CPU, "auto" runs the iteration loop on one thread in a world whose buffers hold at
 most this many bodies, and shares it between the threads in larger ones: each of the shared
@@ -42,10 +42,10 @@ def _merge_mode(info, options: dict) -> int:
     ``jacobi`` solver's global factor bounded by its busiest body's split, or one fixed factor (an
     explicit Jacobi ``relaxation``; the in-place schedules, whose warm start alone uses the merge)."""
     if info.splits_masses:
-        return mass_splitting.MODE_SPLIT
+        return block_adjacency.MODE_SPLIT
     if info.combine == "jacobi" and options.get("relaxation") is None:
-        return mass_splitting.MODE_JACOBI_BOUNDED
-    return mass_splitting.MODE_JACOBI
+        return block_adjacency.MODE_JACOBI_BOUNDED
+    return block_adjacency.MODE_JACOBI
 
 
 _FALLBACK = {"shared": "one", "per-substep": "per-stage"}
@@ -108,7 +108,7 @@ class Schedule:
     def prepare(self, buf, settings, step: int, friction: int) -> None:
         """After the rows: body adjacency, scaled responses and colouring, as separate launches."""
         blk, kind, mode, omega, scaled = self.adjacency_args(buf, settings)
-        mass_splitting.build_adjacency(blk, buf.contacts, buf.bodies, buf.rows, kind, mode, omega)
+        block_adjacency.build_adjacency(blk, buf.contacts, buf.bodies, buf.rows, kind, mode, omega)
         contact_rows.prepare_response(buf.rows, buf.contacts, buf.bodies, blk, scaled, friction)
         self.color(buf, step)
 

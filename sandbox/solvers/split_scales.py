@@ -13,7 +13,7 @@ import taichi as ti
 @ti.func
 def block_scales(s: ti.template(), rows: ti.template(), q: ti.i32, a: ti.i32, b: ti.i32):
     """The inverse-mass scales of bodies a and b inside the block of point q (``s``: the schedule's
-    mass_splitting.BlockScratch): the body's split for a block counted in n_b, its idle split for
+    block_adjacency.BlockScratch): the body's split for a block counted in n_b, its idle split for
     one that is not (Settings.idle_split)."""
     sa, sb = s.scale[a], s.scale[b]
     if rows.counted[q] == 0:

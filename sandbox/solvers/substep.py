@@ -86,7 +86,7 @@ def folds_warm_start(schedule: int, warm: bool) -> bool:
 @ti.func
 def light_sweeps_now(s: ti.template(), schedule: ti.template()) -> ti.i32:
     """This step's extra biased sweeps of light bodies' blocks (Settings.ratio_sweeps, counted by
-    mass_splitting.build_adjacency; 0 in a step without a light body): the Jacobi family's only."""
+    block_adjacency.build_adjacency; 0 in a step without a light body): the Jacobi family's only."""
     extra = 0
     if ti.static(schedule == BLOCKS):
         extra = s.light_sweeps[None]

@@ -1,4 +1,4 @@
-"""Mass splitting (sandbox/solvers/mass_splitting.py) piece by piece.
+"""Mass splitting (sandbox/solvers/mass_splitting.py, block_adjacency.py) piece by piece.
 
 The body adjacency on hand-made contact buffers (every dynamic endpoint of every block
 listed once, per body, in sorted order; the split counts; scale x weight = 1), then one
@@ -16,6 +16,7 @@ from sandbox import Scene, World
 from sandbox.awake import EVERY
 from sandbox.bodies import Bodies
 from sandbox.contacts import Contacts
+from sandbox.solvers import block_adjacency as ba
 from sandbox.solvers import mass_splitting as ms
 from sandbox.solvers.rows import RELAX, Rows
 from tests.helpers import TEST_ARCH, box_body, scene_dict
@@ -62,22 +63,22 @@ def buffers():
     _fill(c.m_body_a, ma, c.pair_capacity)
     _fill(c.m_body_b, mb, c.pair_capacity)
     c.manifold_count[None] = MANIFOLDS
-    # every block can act (mass_splitting._point_can_act): its points touch (separation 0)
+    # every block can act (block_adjacency._point_can_act): its points touch (separation 0)
     c.sep.from_numpy(np.zeros(c.capacity, np.float32))
     c.m_start.from_numpy(np.arange(c.pair_capacity, dtype=np.int32) % POINTS)
     c.m_count.from_numpy(np.ones(c.pair_capacity, np.int32))
-    blocks = {ms.PER_POINT: (a, b), ms.PER_MANIFOLD: (ma, mb)}
-    return ms.BlockScratch(c.capacity, 64), c, bodies, Rows(c.capacity), blocks
+    blocks = {ba.PER_POINT: (a, b), ba.PER_MANIFOLD: (ma, mb)}
+    return ba.BlockScratch(c.capacity, 64), c, bodies, Rows(c.capacity), blocks
 
 
-KINDS = [ms.PER_POINT, ms.PER_MANIFOLD]
+KINDS = [ba.PER_POINT, ba.PER_MANIFOLD]
 KIND_IDS = ["per-point", "per-manifold"]
 
 
 @pytest.mark.parametrize("kind", KINDS, ids=KIND_IDS)
 def test_adjacency_lists_every_dynamic_endpoint_once_in_sorted_order(buffers, kind):
     scratch, c, bodies, rows, blocks = buffers
-    ms.build_adjacency(scratch, c, bodies, rows, kind, ms.MODE_SPLIT, 1.0)
+    ba.build_adjacency(scratch, c, bodies, rows, kind, ba.MODE_SPLIT, 1.0)
     a, b = blocks[kind]
     start = scratch.adj_start.to_numpy()
     adj = scratch.adj.to_numpy()
@@ -100,7 +101,7 @@ def test_split_scale_is_the_block_count_over_omega_and_weight_its_inverse(buffer
     body b that can act); scale x weight = 1, so an impulse reaches the merged body with its
     full mass."""
     scratch, c, bodies, rows, blocks = buffers
-    ms.build_adjacency(scratch, c, bodies, rows, kind, ms.MODE_SPLIT, omega)
+    ba.build_adjacency(scratch, c, bodies, rows, kind, ba.MODE_SPLIT, omega)
     a, b = blocks[kind]
     counts = np.bincount(np.concatenate([a, b]), minlength=BODIES)
     counts = np.maximum(counts, 1)  # a body in no block (ISOLATED at least) is not split
@@ -119,7 +120,7 @@ def test_split_scale_is_the_block_count_over_omega_and_weight_its_inverse(buffer
 def test_jacobi_scale_is_one_global_factor(buffers, omega):
     """Projected Jacobi: the same schedule with one split factor 1 / omega for every body."""
     scratch, c, bodies, rows, _ = buffers
-    ms.build_adjacency(scratch, c, bodies, rows, ms.PER_POINT, ms.MODE_JACOBI, omega)
+    ba.build_adjacency(scratch, c, bodies, rows, ba.PER_POINT, ba.MODE_JACOBI, omega)
     np.testing.assert_allclose(scratch.scale.to_numpy()[:BODIES], 1.0 / omega, rtol=2 ** -23)
     np.testing.assert_allclose(scratch.weight.to_numpy()[:BODIES], omega, rtol=2 ** -23)
 
@@ -134,7 +135,7 @@ def test_bounded_jacobi_takes_its_busiest_bodys_split_as_its_one_factor(buffers,
     from sandbox.solvers.contact_spring import RESTITUTION_THRESHOLD, SPLIT_BOUND
 
     scratch, c, bodies, rows, blocks = buffers
-    a, b = blocks[ms.PER_POINT]
+    a, b = blocks[ba.PER_POINT]
     counts = np.bincount(np.concatenate([a, b]), minlength=BODIES).astype(np.float64)
     counts[STATIC] = 0.0
     relax = np.full(BODIES, 1.8)
@@ -147,7 +148,7 @@ def test_bounded_jacobi_takes_its_busiest_bodys_split_as_its_one_factor(buffers,
     rows.params[RESTITUTION_THRESHOLD] = 1.0
     rows.approach.from_numpy(approach)
     try:
-        ms.build_adjacency(scratch, c, bodies, rows, ms.PER_POINT, ms.MODE_JACOBI_BOUNDED, omega)
+        ba.build_adjacency(scratch, c, bodies, rows, ba.PER_POINT, ba.MODE_JACOBI_BOUNDED, omega)
     finally:
         rows.approach.from_numpy(np.zeros(rows.capacity, np.float32))
     busiest = (counts / relax).max()
@@ -205,7 +206,7 @@ def test_one_sweep_on_a_resting_box_gives_the_impulses_worked_out_by_hand(restin
     buf.bodies.lin_vel[0] = v0
     buf.bodies.ang_vel[0] = w0
     buf.rows.lam.fill(0.0)
-    ms.jacobi_sweep(buf.blocks, buf.rows, buf.contacts, buf.bodies, EVERY, ms.PER_POINT, RELAX, True, 0,
+    ms.jacobi_sweep(buf.blocks, buf.rows, buf.contacts, buf.bodies, EVERY, ba.PER_POINT, RELAX, True, 0,
                     ti.math.vec3(0.0), 0.0, 0)
 
     r = buf.rows.ra.to_numpy()[:4].astype(np.float64)
