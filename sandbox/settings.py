@@ -15,6 +15,8 @@ ITERATION_LAUNCHES = ("auto", "shared", "one", "per-substep", "per-stage")
 FORMULATIONS = ("soft-step", "paper")
 MAX_RATIO_SWEEPS = 8
 """The most ``ratio_sweeps`` a world takes: a GPU's per-substep launch unrolls them."""
+MAX_STEP_SWEEPS = 64
+"""The most ``split_step_sweeps`` a world takes (a substep's sweeps are the team's phases)."""
 
 
 @dataclass(frozen=True)
@@ -82,6 +84,21 @@ class Settings:
     docs/method-notes.md, "The 1:1000 column at 8 iterations"). 2: 15.9 mm there; 3 and 6: 11.5 and
     9.2 mm, at more cost in scenes with such pairs. A scene without such a pair runs none (0 turns
     them off). Ignored by the PGS solvers and under the paper formulation."""
+
+    split_step_sweeps: int = 8
+    """[1] The fewest biased sweeps a step of the Jacobi family (projected Jacobi, mass splitting,
+    block mass splitting) runs: at fewer iterations each substep sweeps its biased rows
+    ceil(``split_step_sweeps`` / iterations) times before the position update (the relax sweeps stay
+    ``sweeps``), and its springs take the stiffness limit of those sweeps
+    (``contact_stiffness_limit``). Why: a split sweep moves a load by one block and turns a face by a
+    share of what its bias asks, so one sweep per substep at few iterations left the split schedules
+    springs too soft for tall structures: pyramid_20's one-box-deep wall buckled out of plane and
+    fell at 4 iterations under both split schedules, a nudged 20-box column fell at 1 and 2
+    (docs/method-notes.md, "Few iterations: a floor on the split schedules' biased sweeps"). 8: from
+    8 iterations on nothing changes; at 4 a substep sweeps twice, at 2 four times, at 1 eight times,
+    and costs that much more (benchmarks/step_bench.py prices it with ``--set split_step_sweeps=0``).
+    0 turns it off. Ignored by the PGS solvers and under the paper formulation (whose iterations
+    are its sweeps)."""
 
     ratio_mass: float = 5.0
     """[1] Mass ratio at which the lighter body of a touching pair of dynamic bodies has its
@@ -235,7 +252,8 @@ class Settings:
     """[1] Sweeps of the solver per substep, for the biased solve and for the relax
     alike. One iteration = one substep with one sweep each is Box2D v3's soft
     step and the default; tests that need a single velocity-level problem solved
-    to convergence use iterations = 1 with many sweeps."""
+    to convergence use iterations = 1 with many sweeps. The Jacobi family sweeps its
+    biased rows more often at few iterations (``split_step_sweeps``)."""
 
     iteration_launch: str = "auto"
     """How the iteration loop is launched (solvers/substep.py); the physics is the same bit
@@ -358,6 +376,11 @@ class Settings:
             from .errors import SandboxError
 
             raise SandboxError(f"ratio_sweeps must be a whole number in [0, {MAX_RATIO_SWEEPS}], got {sweeps!r}")
+        floor = self.split_step_sweeps
+        if isinstance(floor, bool) or not isinstance(floor, int) or not 0 <= floor <= MAX_STEP_SWEEPS:
+            from .errors import SandboxError
+
+            raise SandboxError(f"split_step_sweeps must be a whole number in [0, {MAX_STEP_SWEEPS}], got {floor!r}")
         share = self.contact_preload
         if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0:
             from .errors import SandboxError

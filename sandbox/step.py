@@ -51,7 +51,6 @@ from .broadphase import speculation
 from .effects import CompiledEffects
 from .errors import CapacityError, SimulationError
 from .field_upload import write_rows
-from .formulation import sweep_plan
 from .integrate import check_bodies, motion_switch
 from .manifold_cache import overlap_depth
 from .persistence import match_contacts, store_contacts
@@ -124,7 +123,7 @@ class Stepper:
         if c.effects.sleeping and self.edits.buf.sleep.idle:
             return
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
-        plan = sweep_plan(s.formulation, c.iterations, s.sweeps, c.schedule.ratio_sweeps(s))
+        plan = c.schedule.plan(s, c.iterations)
         # the once-per-step stages in three launches, or two (step_kernels.py); a profiler timing
         # stage by stage launches them one by one, one timing launch by launch keeps them (profile.py)
         fused = self.fused and not (p.enabled and p.per_stage)
@@ -212,7 +211,7 @@ class Stepper:
         if key != self._constants_key:
             info = c.schedule.info
             params = row_params(s, h / plan.substeps, plan.biased, h, c.gravity, info.stiffens_rocking, plan.ratio,
-                                info.stiffens_light_rows)
+                                info.stiffens_extra_sweeps, plan.relax)
             floats, ints = step_scalar_values(s, c.schedule.relaxation(s), h, plan)
             write_rows([(b.rows.params, 0, np.asarray(params)), (b.scalars.f, 0, np.asarray(floats)),
                         (b.scalars.i, 0, np.asarray(ints))])

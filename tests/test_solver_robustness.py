@@ -14,8 +14,10 @@ from itertools import product
 import numpy as np
 import pytest
 
-from sandbox import SOLVERS, Scene, World
+from sandbox import SOLVERS, SandboxError, Scene, Settings, World
+from sandbox.formulation import SweepPlan
 from sandbox.scene.library import SCENES_DIR
+from sandbox.solvers.schedule import Schedule
 
 from tests.helpers import TEST_ARCH, box_body, plane, scene_dict
 
@@ -38,19 +40,12 @@ PYRAMID_RESTING_KE = 1.0
 
 PYRAMID_FAILURES = {
     # measured 2026-11-25 with the preload (contact_spring.py); before it the top box sank 0.32 m
-    # (mass splitting, 4 iterations), 89 mm (8) and 79 mm (block, 4) within the first 600 steps
-    ("mass-splitting", 4, 1800): "stands through 600 steps (top 47 mm, KE 0.02 J), then the one-box-deep wall "
-                                 "buckles out of plane (P-Delta on springs the stability limit keeps soft: serial "
-                                 "PGS with springs capped alike buckles too) from step ~500 and falls after ~1200 "
-                                 "steps; the same without the preload, at stiffness limits 0.45 and 0.75 (1.0 "
-                                 "throws it by the lag instability), at split relaxations 1.0 and 1.4, with 2 "
-                                 "sweeps per substep, and with faces 2.5 times as stiff in rocking as their "
-                                 "capped springs (Settings.contact_rocking_stiffness: 156 mm at step 1500, "
-                                 "2.2 m at 1800) (docs/method-notes.md)",
-    ("block-mass-splitting", 4, 600): "the one-box-deep wall buckles out of plane from the start and falls within "
-                                      "~700 steps, with the preload or without it (top 0.86 m at step 600)",
-    ("block-mass-splitting", 4, 1800): "the one-box-deep wall buckles out of plane from the start and falls within "
-                                       "~700 steps, with the preload or without it",
+    # (mass splitting, 4 iterations), 89 mm (8) and 79 mm (block, 4) within the first 600 steps.
+    # Until 2026-11-28 the one-box-deep wall buckled out of plane at 4 iterations (P-Delta on springs
+    # the stability limit keeps soft): mass splitting from step ~500, falling after ~1200; block mass
+    # splitting from the start, 0.86 m at step 600. Since then the split schedules sweep their biased
+    # rows at least 8 times a step (Settings.split_step_sweeps: twice per substep at 4): top 43.4 /
+    # 41.3 mm after 1800 steps, mean KE 5e-5 / 2e-3 J (docs/method-notes.md)
 }
 
 
@@ -74,6 +69,34 @@ def test_split_schedules_keep_the_pyramid_standing(solver, iterations, steps):
     top = int(np.argmax(start[:, 2]))
     moved = float(np.linalg.norm(end[top] - start[top]))
     assert moved < PYRAMID_TOP_TOLERANCE and ke < PYRAMID_RESTING_KE, f"top moved {moved:.3f} m, KE {ke:.3g} J"
+
+
+SPLIT_SCHEDULES = ("jacobi", "mass-splitting", "block-mass-splitting")
+
+
+@pytest.mark.parametrize("solver", list(SOLVERS))
+def test_the_split_schedules_sweep_their_biased_rows_8_times_a_step_at_least(solver):
+    """Settings.split_step_sweeps: below 8 iterations a Jacobi-family substep sweeps its biased
+    rows ceil(8 / iterations) times and relaxes once; from 8 on, and for the PGS solvers and the
+    paper formulation always, the plan is what it was. The GPU's launch per substep unrolls the
+    sweeps instead of falling back to a launch per stage."""
+    schedule = Schedule(solver, {})
+    split = solver in SPLIT_SCHEDULES
+    for iterations, biased in ((1, 8), (2, 4), (3, 3), (4, 2), (5, 2), (7, 2), (8, 1), (15, 1), (30, 1)):
+        plan = schedule.plan(Settings(), iterations)
+        assert (plan.substeps, plan.biased, plan.relax) == (iterations, biased if split else 1, 1), iterations
+    assert schedule.plan(Settings(split_step_sweeps=0), 4).biased == 1
+    assert schedule.plan(Settings(split_step_sweeps=12, sweeps=2), 4).biased == (3 if split else 2)
+    assert schedule.plan(Settings(formulation="paper"), 4) == SweepPlan(substeps=1, biased=4, relax=0)
+    if solver != "pgs-colored":  # which launches once per colour
+        launch = schedule.launch(Settings(iteration_launch="per-substep"), "cpu", 1000, schedule.plan(Settings(), 4))
+        assert launch == "per-substep"
+
+
+@pytest.mark.parametrize("value", [-1, 65, 1.5, True, "8"])
+def test_a_bad_split_step_sweeps_is_named(value):
+    with pytest.raises(SandboxError, match="split_step_sweeps"):
+        Settings(split_step_sweeps=value)
 
 
 def test_the_web_default_scene_stands_at_4_iterations_with_mass_splitting():

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import taichi as ti
 
-from ..formulation import PAPER
+from ..formulation import PAPER, sweep_plan
 from . import SOLVERS, block_adjacency, mass_splitting, pgs, step_impulses, substep, team
 from . import rows as contact_rows
 
@@ -98,6 +98,16 @@ class Schedule:
         """Settings.ratio_sweeps for the Jacobi family, whose split sweep moves a heavy body's load
         into a light one a share at a time; 0 for the PGS solvers."""
         return settings.ratio_sweeps if self.visit == substep.BLOCKS else 0
+
+    def plan(self, settings, iterations: int):
+        """This schedule's formulation.SweepPlan for a step of ``iterations`` under ``settings``."""
+        return sweep_plan(settings.formulation, iterations, settings.sweeps, self.ratio_sweeps(settings),
+                          self.step_sweeps(settings))
+
+    def step_sweeps(self, settings) -> int:
+        """Settings.split_step_sweeps for the Jacobi family, whose split sweep moves load one block
+        per sweep and so needs more sweeps per substep at few iterations; 0 for the PGS solvers."""
+        return settings.split_step_sweeps if self.visit == substep.BLOCKS else 0
 
     def adjacency_args(self, buf, settings) -> tuple:
         """(block scratch, kind, mode, omega, scaled responses): the schedule's arguments of
@@ -192,8 +202,8 @@ class Schedule:
             launch = "one"  # a GPU block cannot wait for another
         if launch not in self.info.launches:
             launch = _FALLBACK[launch]
-        if launch == "per-substep" and (plan.biased, plan.relax) != (1, 1):
-            launch = "per-stage"  # a sweep count is not unrolled into the kernel
+        if launch == "per-substep" and (plan.relax != 1 or (plan.biased != 1 and self.visit != substep.BLOCKS)):
+            launch = "per-stage"  # only the Jacobi family's biased sweeps are unrolled into the kernel
         return launch
 
     def iterate(self, launch: str, loop: Loop) -> None:
@@ -208,7 +218,7 @@ class Schedule:
             k = loop.iterations
             for i in range(k):
                 warm_here, then_warm = int(i == 0 or not fold), int(fold and i < k - 1)
-                substep.substep_parallel(*self._loop_args(loop), warm_here, then_warm, i, loop.ratio)
+                substep.substep_parallel(*self._loop_args(loop), warm_here, then_warm, i, loop.ratio, loop.sweeps)
         else:
             raise ValueError(f"iterate: {launch!r} is not a fused launch")
 

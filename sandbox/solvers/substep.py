@@ -143,8 +143,10 @@ def iterate_in_order(b: ti.template(), kind: ti.template(), schedule: ti.templat
 @ti.kernel
 def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
                      warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
-                     h: ti.f32, first: ti.i32, then_warm: ti.i32, substep: ti.i32, ratio: ti.template()):
-    """One substep of ``h`` with one sweep each (the Jacobi family: up to ``ratio`` extra biased
+                     h: ti.f32, first: ti.i32, then_warm: ti.i32, substep: ti.i32, ratio: ti.template(),
+                     biased: ti.template()):
+    """One substep of ``h`` with one sweep each (the Jacobi family: ``biased`` biased sweeps,
+    formulation.SweepPlan.biased, unrolled, then up to ``ratio`` extra biased
     sweeps of light bodies' blocks, Settings.ratio_sweeps, and a second relax sweep after a fast
     push, Settings.relax_push_speed; their loops run zero times otherwise), every phase's
     loops parallel, in one launch. ``first``: this substep does its own gravity and warm start;
@@ -157,7 +159,7 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     if ti.static(schedule == BLOCKS):  # loops and nothing between them (substep_loops.py says why)
         fold = ti.static(folds_warm_start(schedule, warm))
         jacobi_substep_loops(s, rows, c, bodies, awake, kind, friction, warm, fold, track, motion, h, first, then_warm,
-                             substep, ratio)
+                             substep, ratio, biased)
     else:
         gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
         _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)

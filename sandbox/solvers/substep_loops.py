@@ -64,9 +64,11 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
                          awake: ti.template(), kind: ti.template(), friction: ti.template(), warm: ti.template(),
                          fold: ti.template(), track: ti.template(), motion: ti.template(), h: ti.template(),
                          first: ti.template(), then_warm: ti.template(), substep: ti.template(),
-                         ratio: ti.template()):
+                         ratio: ti.template(), biased: ti.template()):
     """``substep.substep_parallel`` for the Jacobi family (its arguments, as expressions; a range
-    is written in each loop's header: a name assigned here would be a statement). ``ratio``: the
+    is written in each loop's header: a name assigned here would be a statement). ``biased``: the
+    substep's biased sweeps (formulation.SweepPlan.biased; more than one at few iterations,
+    Settings.split_step_sweeps), unrolled as ``ratio`` is. ``ratio``: the
     extra sweeps of light bodies' blocks (Settings.ratio_sweeps, formulation.SweepPlan.ratio),
     unrolled: 2 ``ratio`` + 1 loops more, which run empty in a step without a light body. This
     step's count ``s.light_sweeps`` is 0 or ``ratio`` (written from the same plan's row
@@ -84,16 +86,18 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
                 gather_body(s, bodies, params_gravity(rows) * h, body_id(awake, k))
             else:
                 apply_gravity(bodies, params_gravity(rows), h, body_id(awake, k))
-    for k in range(_upto(s.block_count[None], s.block_capacity)):
-        if k < s.block_count[None]:
-            if sweep_block(s, rows, c, bodies, kind, BIASED, friction, 0, k, substep):
-                rows.fast_push[None] = 1
-    for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
-        if k < body_total(bodies, awake):
-            i = body_id(awake, k)
-            gather_body(s, bodies, params_gravity(rows) * h * ti.cast(0, ti.f32), i)
-            if s.light_sweeps[None] == 0:
-                advance_pose(bodies, motion, h, i)
+    for sweep in ti.static(range(biased)):  # the poses advance after the last (or after the extra sweeps)
+        for k in range(_upto(s.block_count[None], s.block_capacity)):
+            if k < s.block_count[None]:
+                if sweep_block(s, rows, c, bodies, kind, BIASED, friction, 0, k, substep):
+                    rows.fast_push[None] = 1
+        for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
+            if k < body_total(bodies, awake):
+                i = body_id(awake, k)
+                gather_body(s, bodies, params_gravity(rows) * h * ti.cast(0, ti.f32), i)
+                if ti.static(sweep == biased - 1):
+                    if s.light_sweeps[None] == 0:
+                        advance_pose(bodies, motion, h, i)
     for e in ti.static(range(ratio)):  # light bodies' blocks, listed (light_bodies.py)
         for j in range(_upto(s.light_block_count[None], s.block_capacity)):
             if j < s.light_block_count[None] * ti.cast(s.light_sweeps[None] > e, ti.i32):
