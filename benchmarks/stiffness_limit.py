@@ -175,19 +175,25 @@ def run_buckling(args) -> None:
     print(f"{args.boxes}-box column of unit boxes: critical omega {stiff:.0f} rad/s with the preload's pivot "
           f"(f = 2), {soft:.0f} rad/s about the face's middle (f = 1); asked: {hertz:g} Hz = "
           f"{2 * math.pi * hertz:.0f} rad/s")
-    ratios = {"serial PGS, colored PGS": 1.0,  # K~ / K of an interior box's row
-              "projected Jacobi": max(1.0 / settings.jacobi_relaxation, 8 / settings.split_relaxation),  # its busiest body's
-              "mass splitting": max(1.0, 8 / settings.split_relaxation),  # 4 points below + 4 above
-              "block mass splitting": 2.0}  # one manifold below, one above
+    from sandbox.solvers import SOLVERS
+    from sandbox.solvers.contact_spring import limit_sweeps
+    from sandbox.solvers.schedule import Schedule
+
+    ratios = {"serial PGS, colored PGS": ("pgs", 1.0),  # K~ / K of an interior box's row
+              "projected Jacobi": ("jacobi", max(1.0 / settings.jacobi_relaxation, 8 / settings.split_relaxation)),
+              "mass splitting": ("mass-splitting", max(1.0, 8 / settings.split_relaxation)),  # 4 points below + 4 above
+              "block mass splitting": ("block-mass-splitting", 2.0)}  # one manifold below, one above
     counts = [int(x) for x in args.iterations.split(",")]
     print(f"each schedule's spring at the stability limit kappa = {kappa:g} [rad/s], then the prediction "
           "(buckles: below both; marginal: between; stands: above both)")
     print(f"{'schedule':26s}" + "".join(f"{k:>16d} it" for k in counts))
-    for name, ratio in ratios.items():
+    for name, (solver, ratio) in ratios.items():
         cells = []
         for k in counts:
             h = 1.0 / 60.0 / k
-            omega = min(2 * math.pi * hertz, kappa * math.sqrt(2.0 / ratio) / h)
+            plan = Schedule(solver, {}).plan(settings, k)  # more biased sweeps below 8 (split_step_sweeps)
+            counted = limit_sweeps(plan.biased, plan.relax, SOLVERS[solver].stiffens_extra_sweeps)
+            omega = min(2 * math.pi * hertz, kappa * math.sqrt(2.0 * counted / ratio) / h)
             verdict = "buckles" if omega < stiff else "marginal" if omega < soft else "stands"
             cells.append(f"{omega:7.0f} {verdict:>10s}")
         print(f"{name:26s}" + "".join(f"{c:>19s}" for c in cells))

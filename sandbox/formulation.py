@@ -41,15 +41,15 @@ class SweepPlan:
 
 
 def sweep_plan(formulation: str, iterations: int, sweeps: int, ratio_sweeps: int = 0,
-               step_sweeps: int = 0) -> SweepPlan:
+               split_step_sweeps: int = 0) -> SweepPlan:
     """The plan of a step with ``iterations`` solver iterations, ``Settings.sweeps`` and, for a
     schedule that takes them (the Jacobi family), ``Settings.ratio_sweeps`` and
-    ``Settings.split_step_sweeps`` (``step_sweeps``: the fewest biased sweeps of a step, so a step of
+    ``Settings.split_step_sweeps`` (the fewest biased sweeps of a step, so a step of
     fewer iterations sweeps its biased rows more than once per substep). Under the paper formulation
     neither: its solve is the paper's."""
     if formulation == PAPER:
         return SweepPlan(substeps=1, biased=iterations * sweeps, relax=0)
-    biased = max(sweeps, -(-step_sweeps // iterations))
+    biased = max(sweeps, -(-split_step_sweeps // iterations))
     return SweepPlan(substeps=iterations, biased=biased, relax=sweeps, ratio=ratio_sweeps)
 
 

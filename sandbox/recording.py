@@ -9,7 +9,10 @@ stored XOR'ed with it as raw bits: resting bodies give long runs of zero bytes, 
 squeezes, and the encoding is lossless, so a replay can be compared bit for bit.
 
 Replay depends on determinism: with a fixed scene, solver and arch, CPU runs are bitwise
-repeatable (no float atomics in the state; see solvers/mass_splitting.py).
+repeatable (no float atomics in the state; see solvers/mass_splitting.py). A setting the header
+lacks (one added after the recording was made) replays at its default, and the physics it
+changes shows as a departure: a Jacobi-family recording below 8 iterations made before
+``Settings.split_step_sweeps`` (2026-11-28) departs once its contacts are swept.
 """
 
 from __future__ import annotations

@@ -15,8 +15,9 @@ ITERATION_LAUNCHES = ("auto", "shared", "one", "per-substep", "per-stage")
 FORMULATIONS = ("soft-step", "paper")
 MAX_RATIO_SWEEPS = 8
 """The most ``ratio_sweeps`` a world takes: a GPU's per-substep launch unrolls them."""
-MAX_STEP_SWEEPS = 64
-"""The most ``split_step_sweeps`` a world takes (a substep's sweeps are the team's phases)."""
+MAX_STEP_SWEEPS = 16
+"""The most ``split_step_sweeps`` a world takes: a GPU's per-substep launch unrolls a substep's
+biased sweeps (all of them at 1 iteration)."""
 
 
 @dataclass(frozen=True)
@@ -60,8 +61,9 @@ class Settings:
 
     contact_stiffness_limit: float = 0.6
     """[1] kappa of the stability limit every contact row's spring is capped at:
-    omega h <= kappa sqrt(S K / K~), with h the substep, S the sweeps per substep
-    (biased + relax), K the row's unit response and K~ the one the schedule divides by
+    omega h <= kappa sqrt(S K / K~), with h the substep, S twice the biased sweeps per substep
+    the limit counts (one biased and one relax sweep: S = 2; contact_spring.limit_sweeps), K the row's
+    unit response and K~ the one the schedule divides by
     (K for PGS, about n_b K for mass splitting). Why: the soft spring is only damped when
     the row solve converges within the substep; a sweep that steps by 1 / K~ lags the
     spring by ~K~ / gamma sweeps, and past this limit the lag feeds energy into the
@@ -89,15 +91,17 @@ class Settings:
     """[1] The fewest biased sweeps a step of the Jacobi family (projected Jacobi, mass splitting,
     block mass splitting) runs: at fewer iterations each substep sweeps its biased rows
     ceil(``split_step_sweeps`` / iterations) times before the position update (the relax sweeps stay
-    ``sweeps``), and its springs take the stiffness limit of those sweeps
-    (``contact_stiffness_limit``). Why: a split sweep moves a load by one block and turns a face by a
+    ``sweeps``), and its springs take the stiffness limit of those sweeps (``contact_stiffness_limit``;
+    block mass splitting counts at most one more than it relaxes, contact_spring.limit_sweeps). Why: a split sweep moves a load by one block and turns a face by a
     share of what its bias asks, so one sweep per substep at few iterations left the split schedules
     springs too soft for tall structures: pyramid_20's one-box-deep wall buckled out of plane and
     fell at 4 iterations under both split schedules, a nudged 20-box column fell at 1 and 2
     (docs/method-notes.md, "Few iterations: a floor on the split schedules' biased sweeps"). 8: from
     8 iterations on nothing changes; at 4 a substep sweeps twice, at 2 four times, at 1 eight times,
     and costs that much more (benchmarks/step_bench.py prices it with ``--set split_step_sweeps=0``).
-    0 turns it off. Ignored by the PGS solvers and under the paper formulation (whose iterations
+    On a GPU each count of sweeps per substep compiles its own per-substep launch (unrolled, at most
+    ``MAX_STEP_SWEEPS``): a first step at a new iteration count below 8 pays one compile. 0 turns it
+    off. Ignored by the PGS solvers and under the paper formulation (whose iterations
     are its sweeps)."""
 
     ratio_mass: float = 5.0

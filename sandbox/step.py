@@ -7,7 +7,7 @@ The step, stage by stage (names = profile keys = report keys, profile.STAGES):
 3. ``prepare``      rows, warm-start matching, schedule set-up (solvers/)
 4. ``iterations`` substeps of h / iterations (Box2D v3's soft step, see solvers/rows.py):
    ``integrate_velocities`` (gravity), ``iterate`` (warm start + one biased sweep of the
-   chosen schedule), ``integrate_positions`` (symplectic Euler, conservative rotation),
+   chosen schedule; more below 8 iterations under the Jacobi family, Settings.split_step_sweeps), ``integrate_positions`` (symplectic Euler, conservative rotation),
    ``relax`` (one rigid sweep without position bias; two after a fast push
    under the Jacobi family when ``Settings.relax_push_speed`` asks for it)
 5. ``relax``        restitution pass (repeated until the bounce converges, for every schedule),
@@ -75,7 +75,7 @@ class Controls:
     """What the world's setters chose, read by every substep of one step."""
 
     schedule: Schedule
-    iterations: int  # substeps of the soft step, one sweep each by default
+    iterations: int  # substeps of the soft step, one sweep each by default (Schedule.plan)
     gravity: np.ndarray  # [m/s^2], shape (3,), float32
     effects: CompiledEffects  # compile-time switches (effects.py)
     track_impulses: bool  # each substep's impulses summed into the step's (World.track_impulses)

@@ -7,12 +7,15 @@ The bits depend on the Taichi version and on the CPU and compiler, so the stored
 (``tests/data/state_hashes.json``, ``{platform_key: {case_id: hash}}``) are kept per
 ``platform_key()``; a platform without an entry is not checked.
 
-Cases (``Case.id`` is ``scene-solver-steps``), every one on the CPU with the scene's own
-iteration count and solver options (pgs-colored: its defaults):
+Cases (``Case.id`` is ``scene-solver-steps``, ``-<k>it`` added where the case sets the iteration
+count), every one on the CPU with the scene's own iteration count and solver options
+(pgs-colored: its defaults) unless it sets the count:
 
 - QUICK (``quick_cases()``): every shipped scene with its own solver, 60 steps (tests/test_scenes_smoke.py
   checks these on the world it already steps); ``stack_20``, ``friction_arch`` and
-  ``mass_ratio_stacks`` with each solver, 60 steps (tests/test_state_hashes.py);
+  ``mass_ratio_stacks`` with each solver, 60 steps (tests/test_state_hashes.py); and
+  FEW_ITERATION_CASES, the Jacobi family below 8 iterations (several biased sweeps per substep,
+  Settings.split_step_sweeps: the scenes all ask for 10 or more);
 - FULL (``full_cases()``, ``pytest --stress``): every scene with every solver, 120 steps (all
   of them: generating QUICK and FULL took 8.5 min on the 2-core VM).
 
@@ -50,6 +53,9 @@ SOLVER_NAMES = ("pgs", "pgs-colored", "jacobi", "mass-splitting", "block-mass-sp
 EVERY_SOLVER_SCENES = ("stack_20", "friction_arch", "mass_ratio_stacks")
 """QUICK's scenes run with every solver: contact-heavy ones where the solvers differ most."""
 QUICK_STEPS, FULL_STEPS = 60, 120
+FEW_ITERATIONS = (("stack_20", "mass-splitting", 4), ("friction_arch", "block-mass-splitting", 4),
+                  ("stack_20", "jacobi", 2))
+"""(scene, solver, iterations) of QUICK's cases below the scenes' own counts."""
 
 
 @dataclass(frozen=True)
@@ -58,10 +64,11 @@ class Case:
     solver: str
     steps: int
     own: bool  # the scene's own solver
+    iterations: int | None = None  # None: the scene's own
 
     @property
     def id(self) -> str:
-        return f"{self.scene}-{self.solver}-{self.steps}"
+        return f"{self.scene}-{self.solver}-{self.steps}" + (f"-{self.iterations}it" if self.iterations else "")
 
     @property
     def path(self) -> Path:
@@ -94,7 +101,8 @@ def quick_cases() -> list[Case]:
     own = [own_case(p) for p in scene_paths()]
     solvers = {c.scene: c.solver for c in own}
     every = [Case(s, name, QUICK_STEPS, own=name == solvers[s]) for s in EVERY_SOLVER_SCENES for name in SOLVER_NAMES]
-    return _unique(own + every)
+    few = [Case(s, name, QUICK_STEPS, own=False, iterations=k) for s, name, k in FEW_ITERATIONS]
+    return _unique(own + every + few)
 
 
 def full_cases() -> list[Case]:
@@ -144,7 +152,7 @@ def run_case(case: Case) -> str:
 
     scene = Scene.load(case.path)
     try:
-        world = World(scene, solver=case.solver, arch="cpu")
+        world = World(scene, solver=case.solver, iterations=case.iterations, arch="cpu")
     except SandboxError as exc:
         return f"{type(exc).__name__}: {exc}"
     try:

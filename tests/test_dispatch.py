@@ -42,9 +42,11 @@ def test_cuda_never_runs_serially():
 
 
 CUDA_SHAPE_CASES = ("stack_20-mass-splitting-60", "stack_20-block-mass-splitting-60", "stack_20-pgs-colored-60",
-                    "playground-mass-splitting-60", "mass_ratio_stacks-mass-splitting-60")
+                    "playground-mass-splitting-60", "mass_ratio_stacks-mass-splitting-60",
+                    "stack_20-mass-splitting-60-4it")
 """Both split schedules, the per-colour launches, the web's default scene (mixed shapes,
-sleeping) and light bodies' extra sweeps (solvers/light_bodies.py, added 2026-11-27). On
+sleeping), light bodies' extra sweeps (solvers/light_bodies.py, added 2026-11-27) and two biased
+sweeps per substep at 4 iterations (Settings.split_step_sweeps, unrolled; added 2026-11-28). On
 2026-11-26 all 31 quick cases were run this way and matched (docs/bench.md)."""
 
 CHILD = """
@@ -65,7 +67,7 @@ from sandbox import Scene
 for cid in sys.argv[1:]:
     before = launches[0]
     print(cid, sh.run_case(cases[cid]), flush=True)
-    iterations = Scene.load(cases[cid].path).solver.iterations
+    iterations = cases[cid].iterations or Scene.load(cases[cid].path).solver.iterations
     print("launches", cid, launches[0] - before, cases[cid].steps * iterations, flush=True)
 import contextlib, io, taichi as ti
 table = io.StringIO()
@@ -97,7 +99,7 @@ def test_cuda_loop_shapes_on_the_cpu_give_the_stored_bits():
     # iterations), where a CPU world of their size runs its whole iteration loop in one launch
     counts = {cid: (int(n), int(substeps)) for _, cid, n, substeps in
               (line.split() for line in run.stdout.splitlines() if line.startswith("launches "))}
-    for cid in ("stack_20-mass-splitting-60", "stack_20-block-mass-splitting-60"):
+    for cid in ("stack_20-mass-splitting-60", "stack_20-block-mass-splitting-60", "stack_20-mass-splitting-60-4it"):
         launched, substeps = counts[cid]
         assert launched == substeps, f"{cid}: {launched} substep launches for {substeps} substeps"
     # and each launch is its loops alone: a statement between two loops (a range read at run

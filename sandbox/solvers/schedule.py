@@ -102,9 +102,9 @@ class Schedule:
     def plan(self, settings, iterations: int):
         """This schedule's formulation.SweepPlan for a step of ``iterations`` under ``settings``."""
         return sweep_plan(settings.formulation, iterations, settings.sweeps, self.ratio_sweeps(settings),
-                          self.step_sweeps(settings))
+                          self.split_step_sweeps(settings))
 
-    def step_sweeps(self, settings) -> int:
+    def split_step_sweeps(self, settings) -> int:
         """Settings.split_step_sweeps for the Jacobi family, whose split sweep moves load one block
         per sweep and so needs more sweeps per substep at few iterations; 0 for the PGS solvers."""
         return settings.split_step_sweeps if self.visit == substep.BLOCKS else 0
@@ -202,9 +202,14 @@ class Schedule:
             launch = "one"  # a GPU block cannot wait for another
         if launch not in self.info.launches:
             launch = _FALLBACK[launch]
-        if launch == "per-substep" and (plan.relax != 1 or (plan.biased != 1 and self.visit != substep.BLOCKS)):
-            launch = "per-stage"  # only the Jacobi family's biased sweeps are unrolled into the kernel
+        if launch == "per-substep" and not self._unrolls(plan):
+            launch = "per-stage"
         return launch
+
+    def _unrolls(self, plan) -> bool:
+        """The per-substep launch unrolls ``plan``'s sweeps: one relax sweep, and one biased sweep
+        or, under the Jacobi family, up to settings.MAX_STEP_SWEEPS of them."""
+        return plan.relax == 1 and (plan.biased == 1 or self.visit == substep.BLOCKS)
 
     def iterate(self, launch: str, loop: Loop) -> None:
         """The whole iteration loop in one of the fused launches ("one", "shared", "per-substep")."""

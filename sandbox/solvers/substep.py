@@ -145,8 +145,8 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
                      warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
                      h: ti.f32, first: ti.i32, then_warm: ti.i32, substep: ti.i32, ratio: ti.template(),
                      biased: ti.template()):
-    """One substep of ``h`` with one sweep each (the Jacobi family: ``biased`` biased sweeps,
-    formulation.SweepPlan.biased, unrolled, then up to ``ratio`` extra biased
+    """One substep of ``h``: one biased and one relax sweep (the Jacobi family: ``biased`` biased
+    sweeps, formulation.SweepPlan.biased, unrolled, then up to ``ratio`` extra biased
     sweeps of light bodies' blocks, Settings.ratio_sweeps, and a second relax sweep after a fast
     push, Settings.relax_push_speed; their loops run zero times otherwise), every phase's
     loops parallel, in one launch. ``first``: this substep does its own gravity and warm start;

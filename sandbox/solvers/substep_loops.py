@@ -9,9 +9,10 @@ own, 6-7 us on an H200, and the substep launched 9 of them beside its 9 loops (d
 start switches, the fast-push flag), run to their buffers' capacities under CUDA's loop shapes
 (``backend.capacity_ranges``: each thread compares its index with the count), and take no value
 arguments at the top level (``ti.template()``: passed as expressions, evaluated inside the loops).
-The warm start's gather also clears the fast-push flag, and the biased sweep's gather advances
-the poses (each body's pose reads its own velocities only): 8 tasks per substep instead of 18,
-the same arithmetic in the same order, so the same bits (tests/test_dispatch.py).
+The warm start's gather also clears the fast-push flag, and the last biased sweep's gather
+advances the poses (each body's pose reads its own velocities only): 8 tasks per substep instead
+of 18 (2 more per extra biased sweep, Settings.split_step_sweeps), the same arithmetic in the same
+order, so the same bits (tests/test_dispatch.py).
 """
 
 import taichi as ti
