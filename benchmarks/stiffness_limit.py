@@ -175,8 +175,6 @@ def run_buckling(args) -> None:
     print(f"{args.boxes}-box column of unit boxes: critical omega {stiff:.0f} rad/s with the preload's pivot "
           f"(f = 2), {soft:.0f} rad/s about the face's middle (f = 1); asked: {hertz:g} Hz = "
           f"{2 * math.pi * hertz:.0f} rad/s")
-    from sandbox.solvers import SOLVERS
-    from sandbox.solvers.contact_spring import limit_sweeps
     from sandbox.solvers.schedule import Schedule
 
     ratios = {"serial PGS, colored PGS": ("pgs", 1.0),  # K~ / K of an interior box's row
@@ -191,9 +189,8 @@ def run_buckling(args) -> None:
         cells = []
         for k in counts:
             h = 1.0 / 60.0 / k
-            plan = Schedule(solver, {}).plan(settings, k)  # more biased sweeps below 8 (split_step_sweeps)
-            counted = limit_sweeps(plan.biased, plan.relax, SOLVERS[solver].stiffens_extra_sweeps)
-            omega = min(2 * math.pi * hertz, kappa * math.sqrt(2.0 * counted / ratio) / h)
+            plan = Schedule(solver, {}).plan(settings, k)  # more sweeps below 8 (split_step_sweeps)
+            omega = min(2 * math.pi * hertz, kappa * math.sqrt((plan.biased + plan.relax) / ratio) / h)
             verdict = "buckles" if omega < stiff else "marginal" if omega < soft else "stands"
             cells.append(f"{omega:7.0f} {verdict:>10s}")
         print(f"{name:26s}" + "".join(f"{c:>19s}" for c in cells))

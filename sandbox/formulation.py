@@ -30,7 +30,7 @@ SOFT_STEP, PAPER = "soft-step", "paper"
 class SweepPlan:
     """How one step's iteration loop runs: ``substeps`` of dt / substeps, each with
     ``biased`` biased sweeps (``Settings.sweeps``, or more at few iterations under the Jacobi family:
-    Settings.split_step_sweeps), up to ``ratio`` more over the rows of bodies resting against far
+    Settings.split_step_sweeps, which adds as many relax sweeps), up to ``ratio`` more over the rows of bodies resting against far
     heavier ones (Settings.ratio_sweeps: a step without such a pair runs none), the position
     update, then ``relax`` relax sweeps."""
 
@@ -44,13 +44,13 @@ def sweep_plan(formulation: str, iterations: int, sweeps: int, ratio_sweeps: int
                split_step_sweeps: int = 0) -> SweepPlan:
     """The plan of a step with ``iterations`` solver iterations, ``Settings.sweeps`` and, for a
     schedule that takes them (the Jacobi family), ``Settings.ratio_sweeps`` and
-    ``Settings.split_step_sweeps`` (the fewest biased sweeps of a step, so a step of
-    fewer iterations sweeps its biased rows more than once per substep). Under the paper formulation
+    ``Settings.split_step_sweeps`` (the fewest sweeps of each kind of a step, so a step of fewer
+    iterations sweeps more than once per substep). Under the paper formulation
     neither: its solve is the paper's."""
     if formulation == PAPER:
         return SweepPlan(substeps=1, biased=iterations * sweeps, relax=0)
     biased = max(sweeps, -(-split_step_sweeps // iterations))
-    return SweepPlan(substeps=iterations, biased=biased, relax=sweeps, ratio=ratio_sweeps)
+    return SweepPlan(substeps=iterations, biased=biased, relax=biased, ratio=ratio_sweeps)
 
 
 def baumgarte_rate(settings, dt: float) -> float:

@@ -61,9 +61,8 @@ class Settings:
 
     contact_stiffness_limit: float = 0.6
     """[1] kappa of the stability limit every contact row's spring is capped at:
-    omega h <= kappa sqrt(S K / K~), with h the substep, S twice the biased sweeps per substep
-    the limit counts (one biased and one relax sweep: S = 2; contact_spring.limit_sweeps), K the row's
-    unit response and K~ the one the schedule divides by
+    omega h <= kappa sqrt(S K / K~), with h the substep, S the sweeps per substep
+    (biased + relax), K the row's unit response and K~ the one the schedule divides by
     (K for PGS, about n_b K for mass splitting). Why: the soft spring is only damped when
     the row solve converges within the substep; a sweep that steps by 1 / K~ lags the
     spring by ~K~ / gamma sweeps, and past this limit the lag feeds energy into the
@@ -88,21 +87,23 @@ class Settings:
     them off). Ignored by the PGS solvers and under the paper formulation."""
 
     split_step_sweeps: int = 8
-    """[1] The fewest biased sweeps a step of the Jacobi family (projected Jacobi, mass splitting,
-    block mass splitting) runs: at fewer iterations each substep sweeps its biased rows
-    ceil(``split_step_sweeps`` / iterations) times before the position update (the relax sweeps stay
-    ``sweeps``), and its springs take the stiffness limit of those sweeps (``contact_stiffness_limit``;
-    block mass splitting counts at most one more than it relaxes, contact_spring.limit_sweeps). Why: a split sweep moves a load by one block and turns a face by a
-    share of what its bias asks, so one sweep per substep at few iterations left the split schedules
-    springs too soft for tall structures: pyramid_20's one-box-deep wall buckled out of plane and
-    fell at 4 iterations under both split schedules, a nudged 20-box column fell at 1 and 2
-    (docs/method-notes.md, "Few iterations: a floor on the split schedules' biased sweeps"). 8: from
-    8 iterations on nothing changes; at 4 a substep sweeps twice, at 2 four times, at 1 eight times,
-    and costs that much more (benchmarks/step_bench.py prices it with ``--set split_step_sweeps=0``).
-    On a GPU each count of sweeps per substep compiles its own per-substep launch (unrolled, at most
-    ``MAX_STEP_SWEEPS``): a first step at a new iteration count below 8 pays one compile. 0 turns it
-    off. Ignored by the PGS solvers and under the paper formulation (whose iterations
-    are its sweeps)."""
+    """[1] The fewest sweeps of each kind a step of the Jacobi family (projected Jacobi, mass
+    splitting, block mass splitting) runs: at fewer iterations each substep runs
+    ceil(``split_step_sweeps`` / iterations) biased sweeps before the position update and as many
+    relax sweeps after it (at least ``sweeps``), and its springs take the stiffness limit of those
+    sweeps (``contact_stiffness_limit``). Why: a split sweep moves a load by one block and turns a
+    face by a share of what its bias asks, so one sweep per substep at few iterations left the
+    split schedules' springs too soft for tall structures: pyramid_20's one-box-deep wall buckled
+    out of plane and fell at 4 iterations under both split schedules, a nudged 20-box column fell
+    at 1 and 2 (docs/method-notes.md, "Few iterations: a floor on the split schedules' sweeps").
+    The relax sweeps come with them: more biased than relax sweeps left push-out velocity the one
+    relax sweep did not take back, and resting columns gained energy at 1 and 2 iterations (up to
+    1.5e4 J). 8: from 8 iterations on nothing changes; at 4 a substep sweeps twice of each kind, at
+    2 four times, at 1 eight times, and costs that much more (benchmarks/step_bench.py prices it
+    with ``--set split_step_sweeps=0``). On a GPU each count compiles its own per-substep launch
+    (unrolled, at most ``MAX_STEP_SWEEPS`` of each kind): a first step at a new iteration count
+    below 8 pays one compile. 0 turns it off. Ignored by the PGS solvers and under the paper
+    formulation (whose iterations are its sweeps)."""
 
     ratio_mass: float = 5.0
     """[1] Mass ratio at which the lighter body of a touching pair of dynamic bodies has its
@@ -256,8 +257,8 @@ class Settings:
     """[1] Sweeps of the solver per substep, for the biased solve and for the relax
     alike. One iteration = one substep with one sweep each is Box2D v3's soft
     step and the default; tests that need a single velocity-level problem solved
-    to convergence use iterations = 1 with many sweeps. The Jacobi family sweeps its
-    biased rows more often at few iterations (``split_step_sweeps``)."""
+    to convergence use iterations = 1 with many sweeps. The Jacobi family sweeps more
+    often at few iterations (``split_step_sweeps``)."""
 
     iteration_launch: str = "auto"
     """How the iteration loop is launched (solvers/substep.py); the physics is the same bit

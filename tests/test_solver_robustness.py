@@ -60,9 +60,9 @@ def test_split_schedules_keep_the_pyramid_standing(solver, iterations, steps):
     before it); until 2026-11-28 the one-box-deep wall then buckled out of plane at 4 iterations
     (P-Delta on springs the stability limit keeps soft): mass splitting from step ~500, falling
     after ~1200, block mass splitting from the start (0.86 m at step 600), three strict expected
-    failures. Since the split schedules sweep their biased rows twice per substep at 4 iterations
-    (Settings.split_step_sweeps) the top ends 43.4 / 41.3 mm down after 1800 steps (mean KE 5e-5 /
-    2e-3 J): mostly the sag every schedule has (34.7 mm at 15 iterations), a margin of ~7 mm to
+    failures. Since the split schedules sweep twice of each kind per substep at 4 iterations
+    (Settings.split_step_sweeps) the top ends 43.4 / 41.2 mm down after 1800 steps (mean KE 8e-8 /
+    5e-4 J): mostly the sag every schedule has (34.7 mm at 15 iterations), a margin of ~7 mm to
     the criterion (docs/method-notes.md)."""
     world = World(Scene.load(SCENES_DIR / "pyramid_20.toml"), solver=solver, iterations=iterations, arch=TEST_ARCH)
     start, end, ke = _settle(world, steps)
@@ -76,44 +76,33 @@ SPLIT_SCHEDULES = tuple(name for name, info in SOLVERS.items() if info.visit == 
 
 
 @pytest.mark.parametrize("solver", list(SOLVERS))
-def test_the_split_schedules_sweep_their_biased_rows_8_times_a_step_at_least(solver):
-    """Settings.split_step_sweeps: below 8 iterations a Jacobi-family substep sweeps its biased
-    rows ceil(8 / iterations) times and relaxes once; from 8 on, and for the PGS solvers and the
-    paper formulation always, the plan is what it was. The GPU's launch per substep unrolls the
-    sweeps instead of falling back to a launch per stage."""
-    schedule = Schedule(solver, {})
+def test_the_split_schedules_sweep_8_times_a_step_at_least(solver):
+    """Settings.split_step_sweeps: below 8 iterations a Jacobi-family substep runs ceil(8 /
+    iterations) sweeps of each kind; from 8 on, and for the PGS solvers and the paper formulation
+    always, the plan is what it was. The GPU's launch per substep unrolls them instead of falling
+    back to a launch per stage, and the rows' springs take the stability limit of the sweeps run
+    (kappa sqrt(S), S = biased + relax; a light body's rows under mass splitting and Jacobi up to
+    LIGHT_LIMIT_SWEEPS biased sweeps more)."""
+    schedule, info = Schedule(solver, {}), SOLVERS[solver]
     split = solver in SPLIT_SCHEDULES
-    for iterations, biased in ((1, 8), (2, 4), (3, 3), (4, 2), (5, 2), (7, 2), (8, 1), (15, 1), (30, 1)):
+    kappa = Settings().contact_stiffness_limit
+    for iterations, sweeps in ((1, 8), (2, 4), (3, 3), (4, 2), (5, 2), (7, 2), (8, 1), (15, 1), (30, 1)):
         plan = schedule.plan(Settings(), iterations)
-        assert (plan.substeps, plan.biased, plan.relax) == (iterations, biased if split else 1, 1), iterations
+        each = sweeps if split else 1
+        assert (plan.substeps, plan.biased, plan.relax) == (iterations, each, each), iterations
+        params = row_params(Settings(), 1.0 / 60.0 / iterations, plan.biased, 1.0 / 60.0, (0.0, 0.0, -G),
+                            info.stiffens_rocking, plan.ratio, info.stiffens_light_rows)
+        assert params[STIFFNESS_LIMIT] == pytest.approx(kappa * np.sqrt(2.0 * each)), iterations
+        light = each + (min(plan.ratio, LIGHT_LIMIT_SWEEPS) if info.stiffens_light_rows else 0)
+        assert params[LIGHT_LIMIT] == pytest.approx(kappa * np.sqrt(2.0 * light)), iterations
     assert schedule.plan(Settings(split_step_sweeps=0), 4).biased == 1
     assert schedule.plan(Settings(split_step_sweeps=12, sweeps=2), 4).biased == (3 if split else 2)
     assert schedule.plan(Settings(formulation="paper"), 4) == SweepPlan(substeps=1, biased=4, relax=0)
     if solver != "pgs-colored":  # which launches once per colour
         per_substep = Settings(iteration_launch="per-substep")
         assert schedule.launch(per_substep, "cpu", 1000, schedule.plan(Settings(), 4)) == "per-substep"
-        two = Settings(iteration_launch="per-substep", sweeps=2)  # two relax sweeps are not unrolled
-        assert schedule.launch(two, "cpu", 1000, schedule.plan(two, 4)) == "per-stage"
-
-
-@pytest.mark.parametrize("solver", list(SOLVERS))
-def test_the_stability_limit_counts_the_biased_sweeps(solver):
-    """contact_spring.limit_sweeps: a row's spring is capped at kappa sqrt(2 S), S the biased
-    sweeps per substep it counts: all of them under mass splitting and Jacobi, at most one more
-    than the relax sweeps under block mass splitting (all 8 at 1 iteration made energy in a
-    falling column), the one of each kind of a PGS substep. The light rows' stiffer limit adds
-    at most LIGHT_LIMIT_SWEEPS to the same count."""
-    info, schedule, kappa = SOLVERS[solver], Schedule(solver, {}), Settings().contact_stiffness_limit
-    split = solver in SPLIT_SCHEDULES
-    counted = {1: 8, 2: 4, 4: 2, 8: 1, 15: 1} if info.stiffens_extra_sweeps else {1: 2, 2: 2, 4: 2, 8: 1, 15: 1}
-    for iterations, count in counted.items():
-        plan = schedule.plan(Settings(), iterations)
-        params = row_params(Settings(), 1.0 / 60.0 / iterations, plan.biased, 1.0 / 60.0, (0.0, 0.0, -G),
-                            info.stiffens_rocking, plan.ratio, info.stiffens_extra_sweeps, plan.relax)
-        expected = count if split else 1
-        assert params[STIFFNESS_LIMIT] == pytest.approx(kappa * np.sqrt(2.0 * expected)), iterations
-        light = expected + (min(plan.ratio, LIGHT_LIMIT_SWEEPS) if info.stiffens_extra_sweeps else 0)
-        assert params[LIGHT_LIMIT] == pytest.approx(kappa * np.sqrt(2.0 * light)), iterations
+        two = Settings(iteration_launch="per-substep", sweeps=2)  # unrolled for the Jacobi family only
+        assert schedule.launch(two, "cpu", 1000, schedule.plan(two, 4)) == ("per-substep" if split else "per-stage")
 
 
 @pytest.mark.parametrize("value", [-1, 65, 1.5, True, "8"])

@@ -99,16 +99,13 @@ class SolverInfo:
         return not (self.combine == "split" and self.block == "manifold")
 
     @property
-    def stiffens_extra_sweeps(self) -> bool:
-        """Its rows take the stability limit of every extra biased sweep they get: those of a
-        step of few iterations (Settings.split_step_sweeps) and a light body's
-        (Settings.ratio_sweeps, at most contact_spring.LIGHT_LIMIT_SWEEPS of them); the schedules
-        whose block is one point, where a body's split counts its points, not its manifolds, and
-        whose limit is that much lower. Block mass splitting counts at most one biased sweep more
-        than it relaxes (contact_spring.limit_sweeps). Measured on the 1:1000 column: mass
-        splitting at 8 iterations holds with the sweeps and their limit (late penetration 15.9
-        mm) and fails with either alone (58-962 mm); block mass splitting holds at 15 with the
-        sweeps alone (6.6 mm drift) and tips with their limit (53.7 mm)."""
+    def stiffens_light_rows(self) -> bool:
+        """The rows its extra sweeps visit (Settings.ratio_sweeps) take the stability limit of
+        those sweeps: the schedules whose block is one point, where a light body's split counts
+        its points, not its manifolds, and whose limit is that much lower. Measured on the 1:1000
+        column: mass splitting at 8 iterations holds with the sweeps and their limit (late
+        penetration 15.9 mm) and fails with either alone (58-962 mm); block mass splitting holds at
+        15 with the sweeps alone (6.6 mm drift) and tips with their limit (53.7 mm)."""
         return self.block == "point"
 
     @property

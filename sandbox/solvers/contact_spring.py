@@ -23,10 +23,8 @@ took):
    force of the body the contact holds up (the upward component of all its support
    impulses, averaged over ``contact_load_time``) shared equally among that body's support
    points (``mass_splitting.update_support``): what the body weighs, with what it carries;
-3. the stability limit of the schedule: ``omega h <= kappa sqrt(S K / K~)``, S twice the biased
-   sweeps it counts (limit_sweeps: more than one per substep below 8 iterations under the Jacobi
-   family, Settings.split_step_sweeps; a light body's rows under mass splitting and Jacobi take a
-   stiffer one, measured: LIGHT_LIMIT_SWEEPS).
+3. the stability limit of the schedule: ``omega h <= kappa sqrt(S K / K~)`` (a light body's rows
+   under mass splitting and Jacobi take a stiffer one, measured: LIGHT_LIMIT_SWEEPS).
 
 Why the limit (docs/method-notes.md, "Why low iteration counts blew up"): a sweep steps a
 row by ``dl = -(J v + b + gamma lambda) / (K~ + gamma)``, where K~ is the response the
@@ -98,7 +96,7 @@ sweeps counted, the mass ratio that marks them [1] and their extra sweeps per su
 
 LIGHT_LIMIT_SWEEPS = 2
 """The most of a light body's extra sweeps (Settings.ratio_sweeps) its rows' stability limit counts:
-they take the limit ``row_params`` gives a substep of the counted sweeps (limit_sweeps) + that many of each kind,
+they take the limit ``row_params`` gives a substep of ``sweeps`` + that many sweeps of each kind,
 kappa sqrt(2 (1 + 2)) at the defaults. A measured choice, not the module's argument, which counts
 the sweeps a substep gives those rows (1 + 2 biased and 1 relax: kappa sqrt(4)). Measured on the 1:1000 column under mass splitting at 8 iterations (late penetration, criterion
 20 mm): with the limit of 1 + 2 sweeps, 2 / 3 / 6 extra sweeps leave 15.9 / 11.5 / 9.2 mm; with a
@@ -110,37 +108,22 @@ SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
 
 
-def limit_sweeps(biased: int, relax: int, extra_stiffer: bool) -> int:
-    """The biased sweeps per substep a row's stability limit counts (it takes the limit of a
-    substep with that many sweeps of each kind): all of them for a schedule whose rows stiffen
-    with their extra sweeps (SolverInfo.stiffens_extra_sweeps), else at most one more than the
-    relax sweeps. Equal counts (every PGS plan, every plan from 8 iterations on) count them all.
-    Measured under block mass splitting with Settings.split_step_sweeps: a limit of 2 sweeps keeps
-    pyramid_20 standing at 4 iterations (2 biased, 1 relax; with the stability argument's count,
-    biased + relax = 3, the wall buckles, 957 mm at step 1200), and one counting all 8 biased sweeps
-    at 1 iteration made energy as the 20-box column fell (+7.2e3 J of kinetic plus potential
-    energy above its start); at most 2 made none (docs/method-notes.md)."""
-    if extra_stiffer or relax == 0:  # relax 0: the paper formulation, whose rows have no spring
-        return biased
-    return min(biased, relax + 1)
 
-
-def row_params(settings, h: float, biased: int, dt: float, gravity, rocking: bool = True,
-               ratio_sweeps: int = 0, extra_stiffer: bool = True, relax: int | None = None) -> list[float]:
+def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: bool = True,
+               ratio_sweeps: int = 0, light_stiffer: bool = True) -> list[float]:
     """This step's ``Rows.params`` values from ``settings`` for substeps of ``h`` [s] with
-    ``biased`` biased and ``relax`` relax sweeps each (None: as many), in steps of ``dt`` [s], under
-    ``gravity`` [m/s^2] (step.py writes them into ``Rows.params``); ``rocking``: the schedule
-    stiffens a face's rocking (SolverInfo.stiffens_rocking); ``ratio_sweeps``: the biased sweeps
-    more of the rows of a body resting against a far heavier one (formulation.SweepPlan.ratio),
-    whose springs take the limit of the counted sweeps (limit_sweeps) + that many, at most
-    LIGHT_LIMIT_SWEEPS, when ``extra_stiffer`` (SolverInfo.stiffens_extra_sweeps)."""
+    ``sweeps`` biased and as many relax sweeps each, in steps of ``dt`` [s], under ``gravity``
+    [m/s^2] (step.py writes them into ``Rows.params``); ``rocking``: the schedule stiffens a face's
+    rocking (SolverInfo.stiffens_rocking); ``ratio_sweeps``: the biased sweeps more of the rows of a
+    body resting against a far heavier one (formulation.SweepPlan.ratio), whose springs take the
+    limit of ``sweeps`` + that many sweeps, at most LIGHT_LIMIT_SWEEPS, when ``light_stiffer``
+    (SolverInfo.stiffens_light_rows)."""
 
-    counted = limit_sweeps(biased, biased if relax is None else relax, extra_stiffer)
     values = [0.0] * PARAM_COUNT
     values[INV_H] = 1.0 / h
     values[OMEGA] = 2.0 * math.pi * min(settings.contact_hertz, 0.25 / h)
     values[ZETA] = settings.contact_damping_ratio
-    values[STIFFNESS_LIMIT] = settings.contact_stiffness_limit * math.sqrt(2.0 * counted)
+    values[STIFFNESS_LIMIT] = settings.contact_stiffness_limit * math.sqrt(2.0 * sweeps)
     values[MAX_PUSH] = settings.max_push_speed
     values[RESTITUTION_THRESHOLD] = settings.restitution_threshold
     values[DEFLECTION] = settings.contact_deflection
@@ -159,7 +142,7 @@ def row_params(settings, h: float, biased: int, dt: float, gravity, rocking: boo
     values[OVERLAP_PUSH] = settings.overlap_push_speed
     values[SPLIT_BOUND] = settings.split_relaxation if settings.formulation != PAPER else 1.0
     values[ROCKING] = settings.contact_rocking_stiffness if rocking else 0.0
-    light_sweeps = counted + (min(ratio_sweeps, LIGHT_LIMIT_SWEEPS) if extra_stiffer else 0)
+    light_sweeps = sweeps + (min(ratio_sweeps, LIGHT_LIMIT_SWEEPS) if light_stiffer else 0)
     values[LIGHT_LIMIT] = settings.contact_stiffness_limit * math.sqrt(2.0 * light_sweeps)
     values[RATIO_MASS] = settings.ratio_mass
     values[RATIO_SWEEPS] = float(ratio_sweeps)

@@ -9,9 +9,9 @@ so a schedule can form ``K~ = s_a k_a + s_b k_b`` with its own mass scale
 (s = 1 for PGS, s = n_body for mass splitting; method.md 1.4).
 
 Time stepping is Box2D v3's soft step (Catto, "Solver2D", 2024): one *iteration*
-is one substep of h / iterations: gravity, warm start, one biased sweep (the
-Jacobi family: more below 8 iterations, Settings.split_step_sweeps), position
-update, one relax sweep. Between substeps the separation of every
+is one substep of h / iterations: gravity, warm start, one biased sweep,
+position update, one relax sweep (the Jacobi family: more of each below 8
+iterations, Settings.split_step_sweeps). Between substeps the separation of every
 point is updated from the bodies' motion since the step began (the Jacobians
 stay those of the step start), so the solver sees penetration resolve as it
 happens instead of extrapolating from a stale gap. Contacts are soft

@@ -207,9 +207,9 @@ class Schedule:
         return launch
 
     def _unrolls(self, plan) -> bool:
-        """The per-substep launch unrolls ``plan``'s sweeps: one relax sweep, and one biased sweep
-        or, under the Jacobi family, up to settings.MAX_STEP_SWEEPS of them."""
-        return plan.relax == 1 and (plan.biased == 1 or self.visit == substep.BLOCKS)
+        """The per-substep launch unrolls ``plan``'s sweeps: one of each kind, or under the Jacobi
+        family up to settings.MAX_STEP_SWEEPS of each (Settings.split_step_sweeps)."""
+        return (plan.biased, plan.relax) == (1, 1) or self.visit == substep.BLOCKS
 
     def iterate(self, launch: str, loop: Loop) -> None:
         """The whole iteration loop in one of the fused launches ("one", "shared", "per-substep")."""
@@ -223,7 +223,8 @@ class Schedule:
             k = loop.iterations
             for i in range(k):
                 warm_here, then_warm = int(i == 0 or not fold), int(fold and i < k - 1)
-                substep.substep_parallel(*self._loop_args(loop), warm_here, then_warm, i, loop.ratio, loop.sweeps)
+                substep.substep_parallel(*self._loop_args(loop), warm_here, then_warm, i, loop.ratio, loop.sweeps,
+                                         loop.relax)
         else:
             raise ValueError(f"iterate: {launch!r} is not a fused launch")
 

@@ -144,9 +144,9 @@ def iterate_in_order(b: ti.template(), kind: ti.template(), schedule: ti.templat
 def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.template(), friction: ti.template(),
                      warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
                      h: ti.f32, first: ti.i32, then_warm: ti.i32, substep: ti.i32, ratio: ti.template(),
-                     biased: ti.template()):
+                     biased: ti.template(), relax: ti.template()):
     """One substep of ``h``: one biased and one relax sweep (the Jacobi family: ``biased`` biased
-    sweeps, formulation.SweepPlan.biased, unrolled, then up to ``ratio`` extra biased
+    and ``relax`` relax sweeps, formulation.SweepPlan, unrolled; up to ``ratio`` extra biased
     sweeps of light bodies' blocks, Settings.ratio_sweeps, and a second relax sweep after a fast
     push, Settings.relax_push_speed; their loops run zero times otherwise), every phase's
     loops parallel, in one launch. ``first``: this substep does its own gravity and warm start;
@@ -159,7 +159,7 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     if ti.static(schedule == BLOCKS):  # loops and nothing between them (substep_loops.py says why)
         fold = ti.static(folds_warm_start(schedule, warm))
         jacobi_substep_loops(s, rows, c, bodies, awake, kind, friction, warm, fold, track, motion, h, first, then_warm,
-                             substep, ratio, biased)
+                             substep, ratio, biased, relax)
     else:
         gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
         _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)

@@ -11,7 +11,7 @@ start switches, the fast-push flag), run to their buffers' capacities under CUDA
 arguments at the top level (``ti.template()``: passed as expressions, evaluated inside the loops).
 The warm start's gather also clears the fast-push flag, and the last biased sweep's gather
 advances the poses (each body's pose reads its own velocities only): 8 tasks per substep instead
-of 18 (2 more per extra biased sweep, Settings.split_step_sweeps), the same arithmetic in the same
+of 18 (2 more per extra sweep of either kind, Settings.split_step_sweeps), the same arithmetic in the same
 order, so the same bits (tests/test_dispatch.py).
 """
 
@@ -65,11 +65,11 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
                          awake: ti.template(), kind: ti.template(), friction: ti.template(), warm: ti.template(),
                          fold: ti.template(), track: ti.template(), motion: ti.template(), h: ti.template(),
                          first: ti.template(), then_warm: ti.template(), substep: ti.template(),
-                         ratio: ti.template(), biased: ti.template()):
+                         ratio: ti.template(), biased: ti.template(), relax: ti.template()):
     """``substep.substep_parallel`` for the Jacobi family (its arguments, as expressions; a range
-    is written in each loop's header: a name assigned here would be a statement). ``biased``: the
-    substep's biased sweeps (formulation.SweepPlan.biased; more than one at few iterations,
-    Settings.split_step_sweeps), unrolled as ``ratio`` is. ``ratio``: the
+    is written in each loop's header: a name assigned here would be a statement). ``biased``,
+    ``relax``: the substep's sweeps of each kind (formulation.SweepPlan; more than one at few
+    iterations, Settings.split_step_sweeps), unrolled as ``ratio`` is. ``ratio``: the
     extra sweeps of light bodies' blocks (Settings.ratio_sweeps, formulation.SweepPlan.ratio),
     unrolled: 2 ``ratio`` + 1 loops more, which run empty in a step without a light body. This
     step's count ``s.light_sweeps`` is 0 or ``ratio`` (written from the same plan's row
@@ -111,16 +111,21 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
         for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
             if k < body_total(bodies, awake) * ti.cast(s.light_sweeps[None] > 0, ti.i32):
                 advance_pose(bodies, motion, h, body_id(awake, k))
-    # the relax sweep (a fast push: a second one, which then carries the next warm start);
-    # no relax block writes the flag, so every thread reads the biased and extra sweeps'
-    for k in range(_upto(s.block_count[None], s.block_capacity)):
-        if k < s.block_count[None]:
-            sweep_block(s, rows, c, bodies, kind, RELAX, friction,
-                        _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None]), k, substep)
-    for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
-        if k < body_total(bodies, awake):
-            carry = _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None])
-            gather_body(s, bodies, params_gravity(rows) * h * ti.cast(carry, ti.f32), body_id(awake, k))
+    # the relax sweeps, the last carrying the next warm start (a fast push: one more, which then
+    # carries it); no relax block writes the flag, so every thread reads the biased and extra sweeps'
+    for sweep in ti.static(range(relax)):
+        for k in range(_upto(s.block_count[None], s.block_capacity)):
+            if k < s.block_count[None]:
+                carry = 0
+                if ti.static(sweep == relax - 1):
+                    carry = _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None])
+                sweep_block(s, rows, c, bodies, kind, RELAX, friction, carry, k, substep)
+        for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
+            if k < body_total(bodies, awake):
+                carry = 0
+                if ti.static(sweep == relax - 1):
+                    carry = _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None])
+                gather_body(s, bodies, params_gravity(rows) * h * ti.cast(carry, ti.f32), body_id(awake, k))
     for k in range(_upto(s.block_count[None], s.block_capacity)):
         if k < s.block_count[None] * rows.fast_push[None]:
             sweep_block(s, rows, c, bodies, kind, RELAX, friction, _warm_next(rows, then_warm, fold), k, substep)
