@@ -213,7 +213,7 @@ def test_an_impact_and_a_fast_push_in_every_launch(solver, iterations):
     of the test above lands in an impact step (every substep warm starts in its own pass,
     substep.folds_this_step) while their push-out earns second relax sweeps; the team-shared
     loop walks its most phases there. Every launch mode gives the same bits, also at 2
-    iterations, where a substep sweeps its biased rows 4 times (Settings.split_step_sweeps)."""
+    iterations, where a substep runs 4 sweeps of each kind (Settings.split_step_sweeps)."""
     from sandbox import Settings
     from sandbox.hard_cases import deep_overlap
 
