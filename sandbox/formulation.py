@@ -29,10 +29,10 @@ SOFT_STEP, PAPER = "soft-step", "paper"
 @dataclass(frozen=True)
 class SweepPlan:
     """How one step's iteration loop runs: ``substeps`` of dt / substeps, each with
-    ``biased`` biased sweeps (``Settings.sweeps``, or more at few iterations under the Jacobi family:
-    Settings.split_step_sweeps, which adds as many relax sweeps), up to ``ratio`` more over the rows of bodies resting against far
-    heavier ones (Settings.ratio_sweeps: a step without such a pair runs none), the position
-    update, then ``relax`` relax sweeps."""
+    ``biased`` biased sweeps (``Settings.sweeps``, or more at few iterations under the Jacobi
+    family: Settings.split_step_sweeps, which adds as many relax sweeps), up to ``ratio`` more over
+    the rows of bodies resting against far heavier ones (Settings.ratio_sweeps: a step without such
+    a pair runs none), the position update, then ``relax`` relax sweeps."""
 
     substeps: int
     biased: int
@@ -49,8 +49,8 @@ def sweep_plan(formulation: str, iterations: int, sweeps: int, ratio_sweeps: int
     neither: its solve is the paper's."""
     if formulation == PAPER:
         return SweepPlan(substeps=1, biased=iterations * sweeps, relax=0)
-    biased = max(sweeps, -(-split_step_sweeps // iterations))
-    return SweepPlan(substeps=iterations, biased=biased, relax=biased, ratio=ratio_sweeps)
+    each = max(sweeps, -(-split_step_sweeps // iterations))  # ceil(split_step_sweeps / iterations)
+    return SweepPlan(substeps=iterations, biased=each, relax=each, ratio=ratio_sweeps)
 
 
 def baumgarte_rate(settings, dt: float) -> float:

@@ -17,7 +17,7 @@ MAX_RATIO_SWEEPS = 8
 """The most ``ratio_sweeps`` a world takes: a GPU's per-substep launch unrolls them."""
 MAX_STEP_SWEEPS = 16
 """The most ``split_step_sweeps`` a world takes: a GPU's per-substep launch unrolls a substep's
-biased sweeps (all of them at 1 iteration)."""
+sweeps of each kind (all of them at 1 iteration)."""
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,8 @@ start switches, the fast-push flag), run to their buffers' capacities under CUDA
 arguments at the top level (``ti.template()``: passed as expressions, evaluated inside the loops).
 The warm start's gather also clears the fast-push flag, and the last biased sweep's gather
 advances the poses (each body's pose reads its own velocities only): 8 tasks per substep instead
-of 18 (2 more per extra sweep of either kind, Settings.split_step_sweeps), the same arithmetic in the same
-order, so the same bits (tests/test_dispatch.py).
+of 18 (2 more per extra sweep of either kind, Settings.split_step_sweeps), the same arithmetic in
+the same order, so the same bits (tests/test_dispatch.py).
 """
 
 import taichi as ti
@@ -58,6 +58,16 @@ def _warm_next(rows: ti.template(), then_warm: ti.template(), fold: ti.template(
     if ti.static(fold):
         nxt = then_warm * folds_this_step(rows)
     return nxt
+
+
+@ti.func
+def _carry_after(rows: ti.template(), then_warm: ti.template(), fold: ti.template(), last: ti.template()) -> ti.i32:
+    """1: this relax sweep carries the next substep's gravity and warm start (the last of the
+    substep's relax sweeps, without a fast push: that earns one more, which carries it instead)."""
+    carry = 0
+    if ti.static(last):
+        carry = _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None])
+    return carry
 
 
 @ti.func
@@ -116,15 +126,11 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
     for sweep in ti.static(range(relax)):
         for k in range(_upto(s.block_count[None], s.block_capacity)):
             if k < s.block_count[None]:
-                carry = 0
-                if ti.static(sweep == relax - 1):
-                    carry = _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None])
-                sweep_block(s, rows, c, bodies, kind, RELAX, friction, carry, k, substep)
+                sweep_block(s, rows, c, bodies, kind, RELAX, friction,
+                            _carry_after(rows, then_warm, fold, sweep == relax - 1), k, substep)
         for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
             if k < body_total(bodies, awake):
-                carry = 0
-                if ti.static(sweep == relax - 1):
-                    carry = _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None])
+                carry = _carry_after(rows, then_warm, fold, sweep == relax - 1)
                 gather_body(s, bodies, params_gravity(rows) * h * ti.cast(carry, ti.f32), body_id(awake, k))
     for k in range(_upto(s.block_count[None], s.block_capacity)):
         if k < s.block_count[None] * rows.fast_push[None]:
