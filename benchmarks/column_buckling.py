@@ -77,7 +77,7 @@ def run(boxes: int, solver: str, iterations: int, limit: float, sweeps: int, roc
                 omega = spring_omega(world, h, settings.contact_damping_ratio)
         offsets = np.array(offsets)
         last_second = max(1, int(round(1.0 / dt)))
-        biased = Schedule(solver, {}).plan(settings, iterations).biased  # more below 8 (split_step_sweeps)
+        biased = Schedule(solver, {}).plan(settings, iterations).biased  # more below 8 (step_sweeps)
         return {"omega": omega, "omega_h": omega * h, "biased": biased,
                 "growth": lean_growth(dt * np.arange(1, steps + 1), offsets),
                 "drift_mm": 1e3 * float(np.abs(offsets).max()), "ke": float(np.mean(ke[-last_second:]))}

@@ -189,7 +189,7 @@ def run_buckling(args) -> None:
         cells = []
         for k in counts:
             h = 1.0 / 60.0 / k
-            plan = Schedule(solver, {}).plan(settings, k)  # more sweeps below 8 (split_step_sweeps)
+            plan = Schedule(solver, {}).plan(settings, k)  # more sweeps below 8 (step_sweeps)
             omega = min(2 * math.pi * hertz, kappa * math.sqrt((plan.biased + plan.relax) / ratio) / h)
             verdict = "buckles" if omega < stiff else "marginal" if omega < soft else "stands"
             cells.append(f"{omega:7.0f} {verdict:>10s}")

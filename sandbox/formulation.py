@@ -29,8 +29,8 @@ SOFT_STEP, PAPER = "soft-step", "paper"
 @dataclass(frozen=True)
 class SweepPlan:
     """How one step's iteration loop runs: ``substeps`` of dt / substeps, each with
-    ``biased`` biased sweeps (``Settings.sweeps``, or more at few iterations under the Jacobi
-    family: Settings.split_step_sweeps, which adds as many relax sweeps), up to ``ratio`` more over
+    ``biased`` biased sweeps (``Settings.sweeps``, or more at few iterations:
+    Settings.step_sweeps, which adds as many relax sweeps), up to ``ratio`` more over
     the rows of bodies resting against far heavier ones (Settings.ratio_sweeps: a step without such
     a pair runs none), the position update, then ``relax`` relax sweeps."""
 
@@ -41,15 +41,15 @@ class SweepPlan:
 
 
 def sweep_plan(formulation: str, iterations: int, sweeps: int, ratio_sweeps: int = 0,
-               split_step_sweeps: int = 0) -> SweepPlan:
-    """The plan of a step with ``iterations`` solver iterations, ``Settings.sweeps`` and, for a
-    schedule that takes them (the Jacobi family), ``Settings.ratio_sweeps`` and
-    ``Settings.split_step_sweeps`` (the fewest sweeps of each kind of a step, so a step of fewer
-    iterations sweeps more than once per substep). Under the paper formulation
-    neither: its solve is the paper's."""
+               step_sweeps: int = 0) -> SweepPlan:
+    """The plan of a step with ``iterations`` solver iterations, ``Settings.sweeps``,
+    ``Settings.step_sweeps`` (the fewest sweeps of each kind of a step, so a step of fewer
+    iterations sweeps more than once per substep) and, for a schedule that takes them (the Jacobi
+    family), ``Settings.ratio_sweeps``. Under the paper formulation none of them: its solve is the
+    paper's."""
     if formulation == PAPER:
         return SweepPlan(substeps=1, biased=iterations * sweeps, relax=0)
-    each = max(sweeps, -(-split_step_sweeps // iterations))  # ceil(split_step_sweeps / iterations)
+    each = max(sweeps, -(-step_sweeps // iterations))  # ceil(step_sweeps / iterations)
     return SweepPlan(substeps=iterations, biased=each, relax=each, ratio=ratio_sweeps)
 
 

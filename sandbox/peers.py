@@ -11,7 +11,8 @@ pybullet is set up the way the team's anchors (RESULTS.md) were: boxes as maxima
 rigid bodies with the scene's masses and half extents, static planes, friction sqrt(0.5) per
 body (Bullet multiplies the two coefficients, so every pair gets 0.5), no damping, no sleeping,
 ``numSolverIterations`` = iterations. Only box-and-plane scenes are translated.
-Rapier (``rapier3d``, Rust, f32) runs our very scheme: ``num_solver_iterations`` = iterations
+Rapier (``rapier3d``, Rust, f32) runs our very scheme from 8 iterations on (below, ours sweeps more
+per substep, Settings.step_sweeps): ``num_solver_iterations`` = iterations
 substeps of dt / iterations, each with one biased and one relax sweep, soft contacts (30 Hz,
 damping ratio 10, twice as stiff against fixed bodies). It is set up as in the team's anchors
 (apis.md section 6): cuboids with the scene's masses (solid-box inertia), half-spaces on fixed

@@ -11,8 +11,9 @@ squeezes, and the encoding is lossless, so a replay can be compared bit for bit.
 Replay depends on determinism: with a fixed scene, solver and arch, CPU runs are bitwise
 repeatable (no float atomics in the state; see solvers/mass_splitting.py). A setting the header
 lacks (one added after the recording was made) replays at its default, and the physics it
-changes shows as a departure: a Jacobi-family recording below 8 iterations made before
-``Settings.split_step_sweeps`` (2026-11-28) departs once its contacts are swept.
+changes shows as a departure: a recording below 8 iterations made before ``Settings.step_sweeps``
+reached its schedule (2026-11-28: first the Jacobi family, then every schedule) departs once its
+contacts are swept. A setting's former name reads as its new one (settings.RENAMED).
 """
 
 from __future__ import annotations
@@ -177,8 +178,12 @@ def replay(path, arch: str = "cpu", on_frame=None) -> dict:
         raise SandboxError(f"recording {path}: stored scene does not parse ({exc})") from None
     scene_path = Path(header["scene_path"])
     scene = scene_from_dict(data, source=str(scene_path), base_dir=scene_path.parent)
+    try:
+        settings = Settings().replace(**header["settings"])
+    except SandboxError as exc:
+        raise SandboxError(f"recording {path}: {exc}") from None
     world = World(scene, solver=header["solver"], iterations=header["iterations"], arch=arch,
-                  settings=Settings(**header["settings"]), reserve_pieces=header.get("reserve_pieces", 0),
+                  settings=settings, reserve_pieces=header.get("reserve_pieces", 0),
                   reserve_kinds=tuple(header.get("reserve_kinds", ())),
                   **{k: v for k, v in header["solver_options"].items() if v is not None})
     world._pending = []  # the recorded log already holds the scripted events

@@ -15,8 +15,10 @@ ITERATION_LAUNCHES = ("auto", "shared", "one", "per-substep", "per-stage")
 FORMULATIONS = ("soft-step", "paper")
 MAX_RATIO_SWEEPS = 8
 """The most ``ratio_sweeps`` a world takes: a GPU's per-substep launch unrolls them."""
+RENAMED = {"split_step_sweeps": "step_sweeps"}
+"""Former names of settings, read as the new ones (Settings.replace)."""
 MAX_STEP_SWEEPS = 16
-"""The most ``split_step_sweeps`` a world takes: a GPU's per-substep launch unrolls a substep's
+"""The most ``step_sweeps`` a world takes: a GPU's per-substep launch unrolls a substep's
 sweeps of each kind (all of them at 1 iteration)."""
 
 
@@ -86,24 +88,27 @@ class Settings:
     9.2 mm, at more cost in scenes with such pairs. A scene without such a pair runs none (0 turns
     them off). Ignored by the PGS solvers and under the paper formulation."""
 
-    split_step_sweeps: int = 8
-    """[1] The fewest sweeps of each kind a step of the Jacobi family (projected Jacobi, mass
-    splitting, block mass splitting) runs: at fewer iterations each substep runs
-    ceil(``split_step_sweeps`` / iterations) biased sweeps before the position update and as many
-    relax sweeps after it (at least ``sweeps``), and its springs take the stiffness limit of those
-    sweeps (``contact_stiffness_limit``). Why: a split sweep moves a load by one block and turns a
-    face by a share of what its bias asks, so one sweep per substep at few iterations left the
-    split schedules' springs too soft for tall structures: pyramid_20's one-box-deep wall buckled
-    out of plane and fell at 4 iterations under both split schedules, a nudged 20-box column fell
-    at 1 and 2 (docs/method-notes.md, "Few iterations: a floor on the split schedules' sweeps").
-    The relax sweeps come with them: more biased than relax sweeps left push-out velocity the one
-    relax sweep did not take back, and resting columns gained energy at 1 and 2 iterations (up to
-    1.5e4 J). 8: from 8 iterations on nothing changes; at 4 a substep sweeps twice of each kind, at
-    2 four times, at 1 eight times, and costs that much more (benchmarks/step_bench.py prices it
-    with ``--set split_step_sweeps=0``). On a GPU each count compiles its own per-substep launch
-    (unrolled, at most ``MAX_STEP_SWEEPS`` of each kind): a first step at a new iteration count
-    below 8 pays one compile. 0 turns it off. Ignored by the PGS solvers and under the paper
-    formulation (whose iterations are its sweeps)."""
+    step_sweeps: int = 8
+    """[1] The fewest sweeps of each kind a step runs, under every schedule of the soft step: at
+    fewer iterations each substep runs ceil(``step_sweeps`` / iterations) biased sweeps before the
+    position update and as many relax sweeps after it (at least ``sweeps``), and its springs take
+    the stiffness limit of those sweeps (``contact_stiffness_limit``). Why: a tall structure needs
+    springs stiffer than one sweep per substep can carry at few iterations (a 20-box column buckles
+    below ~270 rad/s; the limit is kappa sqrt(S) / h). With one sweep of each kind per substep
+    pyramid_20's one-box-deep wall buckled and fell at 4 iterations under both split schedules, and
+    the 20-box column and the arch fell at 1 or 2 under every schedule, their tops reaching 11-20 m/s
+    (docs/method-notes.md, "Few iterations: a floor on the split schedules' sweeps" and "Few
+    iterations: the floor on every schedule"; at 1 iteration it delays a column's fall, it does not
+    stop it). The relax sweeps come with them: more biased than relax sweeps left
+    push-out velocity the one relax sweep did not take back, and resting columns gained energy at 1
+    and 2 iterations (up to 1.5e4 J). It also keeps the schedules' work equal at equal iteration
+    counts. 8: from 8 iterations on nothing changes (every schedule then is Rapier's scheme, one
+    sweep of each kind per substep); at 4 a substep sweeps twice of each kind, at 2 four times, at 1
+    eight times, and costs that much more (benchmarks/step_bench.py prices it with ``--set
+    step_sweeps=0``). On a GPU each count compiles its own per-substep launch (unrolled, at most
+    ``MAX_STEP_SWEEPS`` of each kind): a first step at a new iteration count below 8 pays one
+    compile. 0 turns it off. Ignored under the paper formulation (whose iterations are its sweeps).
+    Named ``split_step_sweeps`` on 2026-11-28, when it was the Jacobi family's alone."""
 
     ratio_mass: float = 5.0
     """[1] Mass ratio at which the lighter body of a touching pair of dynamic bodies has its
@@ -257,8 +262,8 @@ class Settings:
     """[1] Sweeps of the solver per substep, for the biased solve and for the relax
     alike. One iteration = one substep with one sweep each is Box2D v3's soft
     step and the default; tests that need a single velocity-level problem solved
-    to convergence use iterations = 1 with many sweeps. The Jacobi family sweeps more
-    often at few iterations (``split_step_sweeps``)."""
+    to convergence use iterations = 1 with many sweeps. At few iterations every schedule
+    sweeps more often (``step_sweeps``)."""
 
     iteration_launch: str = "auto"
     """How the iteration loop is launched (solvers/substep.py); the physics is the same bit
@@ -381,11 +386,11 @@ class Settings:
             from .errors import SandboxError
 
             raise SandboxError(f"ratio_sweeps must be a whole number in [0, {MAX_RATIO_SWEEPS}], got {sweeps!r}")
-        floor = self.split_step_sweeps
+        floor = self.step_sweeps
         if isinstance(floor, bool) or not isinstance(floor, int) or not 0 <= floor <= MAX_STEP_SWEEPS:
             from .errors import SandboxError
 
-            raise SandboxError(f"split_step_sweeps must be a whole number in [0, {MAX_STEP_SWEEPS}], got {floor!r}")
+            raise SandboxError(f"step_sweeps must be a whole number in [0, {MAX_STEP_SWEEPS}], got {floor!r}")
         share = self.contact_preload
         if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0:
             from .errors import SandboxError
@@ -400,6 +405,9 @@ class Settings:
         return self.manifold_reuse_distance ** 2, math.sin(0.5 * self.manifold_reuse_angle)
 
     def replace(self, **changes) -> "Settings":
+        """A copy with ``changes``; a setting's former name (RENAMED) still reads, so recordings and
+        scripts made before a rename replay."""
+        changes = {RENAMED.get(name, name): value for name, value in changes.items()}
         known = {f.name for f in fields(self)}
         unknown = set(changes) - known
         if unknown:

@@ -7,8 +7,8 @@ The step, stage by stage (names = profile keys = report keys, profile.STAGES):
 3. ``prepare``      rows, warm-start matching, schedule set-up (solvers/)
 4. ``iterations`` substeps of h / iterations (Box2D v3's soft step, see solvers/rows.py):
    ``integrate_velocities`` (gravity), ``iterate`` (warm start + one biased sweep of the
-   chosen schedule; more of each kind below 8 iterations under the Jacobi family,
-   Settings.split_step_sweeps), ``integrate_positions`` (symplectic Euler, conservative rotation),
+   chosen schedule; more of each kind below 8 iterations,
+   Settings.step_sweeps), ``integrate_positions`` (symplectic Euler, conservative rotation),
    ``relax`` (one rigid sweep without position bias; two after a fast push
    under the Jacobi family when ``Settings.relax_push_speed`` asks for it)
 5. ``relax``        restitution pass (repeated until the bounce converges, for every schedule),

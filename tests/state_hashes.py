@@ -14,8 +14,8 @@ count), every one on the CPU with the scene's own iteration count and solver opt
 - QUICK (``quick_cases()``): every shipped scene with its own solver, 60 steps (tests/test_scenes_smoke.py
   checks these on the world it already steps); ``stack_20``, ``friction_arch`` and
   ``mass_ratio_stacks`` with each solver, 60 steps (tests/test_state_hashes.py); and
-  FEW_ITERATION_CASES, the Jacobi family below 8 iterations (several biased sweeps per substep,
-  Settings.split_step_sweeps: the scenes all ask for 10 or more);
+  FEW_ITERATIONS, below 8 iterations (several sweeps of each kind per substep,
+  Settings.step_sweeps: the scenes all ask for 10 or more);
 - FULL (``full_cases()``, ``pytest --stress``): every scene with every solver, 120 steps (all
   of them: generating QUICK and FULL took 8.5 min on the 2-core VM).
 
@@ -54,7 +54,7 @@ EVERY_SOLVER_SCENES = ("stack_20", "friction_arch", "mass_ratio_stacks")
 """QUICK's scenes run with every solver: contact-heavy ones where the solvers differ most."""
 QUICK_STEPS, FULL_STEPS = 60, 120
 FEW_ITERATIONS = (("stack_20", "mass-splitting", 4), ("friction_arch", "block-mass-splitting", 4),
-                  ("stack_20", "jacobi", 2))
+                  ("stack_20", "jacobi", 2), ("friction_arch", "pgs", 2))
 """(scene, solver, iterations) of QUICK's cases below the scenes' own counts."""
 
 

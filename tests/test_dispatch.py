@@ -45,8 +45,10 @@ CUDA_SHAPE_CASES = ("stack_20-mass-splitting-60", "stack_20-block-mass-splitting
                     "playground-mass-splitting-60", "mass_ratio_stacks-mass-splitting-60",
                     "stack_20-mass-splitting-60-4it")
 """Both split schedules, the per-colour launches, the web's default scene (mixed shapes,
-sleeping), light bodies' extra sweeps (solvers/light_bodies.py, added 2026-11-27) and two biased
-sweeps per substep at 4 iterations (Settings.split_step_sweeps, unrolled; added 2026-11-28). On
+sleeping), light bodies' extra sweeps (solvers/light_bodies.py, added 2026-11-27) and two
+sweeps of each kind per substep at 4 iterations (Settings.step_sweeps, unrolled; added
+2026-11-28). Serial PGS is not here: its sweep is one thread by design, a serial task the
+loops-only check below would refuse (tests/test_solvers.py checks its unrolled launch). On
 2026-11-26 all 31 quick cases were run this way and matched (docs/bench.md)."""
 
 CHILD = """

@@ -25,10 +25,10 @@ def test_a_step_run_sweep_by_sweep_is_bitwise_a_step(solver, formulation):
     while (sweep := inspection.advance()) is not None:
         sweeps.append((sweep.substep, sweep.phase))
         inspection.contacts()  # reading between sweeps changes nothing
-    # a substep's sweeps: mass splitting at 4 iterations sweeps twice of each kind
-    # (Settings.split_step_sweeps); the paper's one step sweeps 4 times and never relaxes
-    per_substep = {"pgs": ["biased", "relax"], "mass-splitting": ["biased", "biased", "relax", "relax"],
-                   "block-mass-splitting": ["biased"] * 4}[solver]
+    # a substep's sweeps: at 4 iterations every schedule sweeps twice of each kind
+    # (Settings.step_sweeps); the paper's one step sweeps 4 times and never relaxes
+    twice = ["biased", "biased", "relax", "relax"]
+    per_substep = {"pgs": twice, "mass-splitting": twice, "block-mass-splitting": ["biased"] * 4}[solver]
     substeps = 4 if formulation == "soft-step" else 1
     assert sweeps == [(i, phase) for i in range(substeps) for phase in per_substep]
     assert len(sweeps) == len(inspection.residuals)

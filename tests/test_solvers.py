@@ -207,13 +207,14 @@ def test_a_fast_push_relaxes_twice_in_every_launch(solver):
 
 
 @pytest.mark.parametrize("solver, iterations", [("jacobi", 15), ("mass-splitting", 15), ("block-mass-splitting", 15),
-                                                ("mass-splitting", 2)])
+                                                ("mass-splitting", 2), ("pgs", 2)])
 def test_an_impact_and_a_fast_push_in_every_launch(solver, iterations):
     """Both of a substep's extra passes at once: a box thrown at 8 m/s onto the overlapping boxes
     of the test above lands in an impact step (every substep warm starts in its own pass,
     substep.folds_this_step) while their push-out earns second relax sweeps; the team-shared
     loop walks its most phases there. Every launch mode gives the same bits, also at 2
-    iterations, where a substep runs 4 sweeps of each kind (Settings.split_step_sweeps)."""
+    iterations, where a substep runs 4 sweeps of each kind (Settings.step_sweeps; serial PGS's
+    per-substep launch unrolls them too)."""
     from sandbox import Settings
     from sandbox.hard_cases import deep_overlap
 

@@ -28,12 +28,12 @@ def frozen_problem(scene, arch: str, settle: int):
 
 def convergence(frozen, settings, solver: str, options: dict, sweeps: int, arch: str) -> dict:
     """Residual after every biased sweep on the frozen problem (one step, iterations = 1,
-    warm start off, exactly ``sweeps`` sweeps: no floor of the split schedules',
-    Settings.split_step_sweeps), and the solve time per sweep from a second, unrecorded run."""
+    warm start off, exactly ``sweeps`` sweeps: no floor,
+    Settings.step_sweeps), and the solve time per sweep from a second, unrecorded run."""
     from ..errors import SandboxError
     from ..world import World
 
-    s = settings.replace(sweeps=sweeps, warm_start=0.0, split_step_sweeps=0)
+    s = settings.replace(sweeps=sweeps, warm_start=0.0, step_sweeps=0)
     out = {"solver": solver, "options": options, "sweeps": sweeps, "residual": [], "ms_per_sweep": None,
            "status": "ok"}
     for record in (True, False):

@@ -10,8 +10,8 @@ so a schedule can form ``K~ = s_a k_a + s_b k_b`` with its own mass scale
 
 Time stepping is Box2D v3's soft step (Catto, "Solver2D", 2024): one *iteration*
 is one substep of h / iterations: gravity, warm start, one biased sweep,
-position update, one relax sweep (the Jacobi family: more of each below 8
-iterations, Settings.split_step_sweeps). Between substeps the separation of every
+position update, one relax sweep (more of each below 8 iterations,
+Settings.step_sweeps). Between substeps the separation of every
 point is updated from the bodies' motion since the step began (the Jacobians
 stay those of the step start), so the solver sees penetration resolve as it
 happens instead of extrapolating from a stale gap. Contacts are soft

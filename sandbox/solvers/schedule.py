@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import taichi as ti
 
 from ..formulation import PAPER, sweep_plan
+from ..settings import MAX_STEP_SWEEPS
 from . import SOLVERS, block_adjacency, mass_splitting, pgs, step_impulses, substep, team
 from . import rows as contact_rows
 
@@ -102,12 +103,7 @@ class Schedule:
     def plan(self, settings, iterations: int):
         """This schedule's formulation.SweepPlan for a step of ``iterations`` under ``settings``."""
         return sweep_plan(settings.formulation, iterations, settings.sweeps, self.ratio_sweeps(settings),
-                          self.split_step_sweeps(settings))
-
-    def split_step_sweeps(self, settings) -> int:
-        """Settings.split_step_sweeps for the Jacobi family, whose split sweep moves load one block
-        per sweep and so needs more sweeps per substep at few iterations; 0 for the PGS solvers."""
-        return settings.split_step_sweeps if self.visit == substep.BLOCKS else 0
+                          settings.step_sweeps)
 
     def adjacency_args(self, buf, settings) -> tuple:
         """(block scratch, kind, mode, omega, scaled responses): the schedule's arguments of
@@ -206,10 +202,11 @@ class Schedule:
             launch = "per-stage"
         return launch
 
-    def _unrolls(self, plan) -> bool:
-        """The per-substep launch unrolls ``plan``'s sweeps: one of each kind, or under the Jacobi
-        family up to settings.MAX_STEP_SWEEPS of each (Settings.split_step_sweeps)."""
-        return (plan.biased, plan.relax) == (1, 1) or self.visit == substep.BLOCKS
+    @staticmethod
+    def _unrolls(plan) -> bool:
+        """The per-substep launch unrolls ``plan``'s sweeps, up to MAX_STEP_SWEEPS of each kind
+        (Settings.step_sweeps); more falls back to a launch per stage."""
+        return max(plan.biased, plan.relax) <= MAX_STEP_SWEEPS
 
     def iterate(self, launch: str, loop: Loop) -> None:
         """The whole iteration loop in one of the fused launches ("one", "shared", "per-substep")."""

@@ -145,14 +145,13 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
                      warm: ti.template(), track: ti.template(), awake: ti.template(), motion: ti.template(),
                      h: ti.f32, first: ti.i32, then_warm: ti.i32, substep: ti.i32, ratio: ti.template(),
                      biased: ti.template(), relax: ti.template()):
-    """One substep of ``h``: one biased and one relax sweep (the Jacobi family: ``biased`` biased
-    and ``relax`` relax sweeps, formulation.SweepPlan, unrolled; up to ``ratio`` extra biased
-    sweeps of light bodies' blocks, Settings.ratio_sweeps, and a second relax sweep after a fast
-    push, Settings.relax_push_speed; their loops run zero times otherwise), every phase's
-    loops parallel, in one launch. ``first``: this substep does its own gravity and warm start;
-    ``then_warm``: its last relax sweep does the next one's (both 1 / 0 decided by
-    ``Schedule.iterate`` with ``folds_warm_start``; a step with an impact row overrides them
-    to 1 / 0, folds_this_step, in substep_loops.py's loops). ``substep``: its index in the step
+    """One substep of ``h``: ``biased`` biased and ``relax`` relax sweeps (formulation.SweepPlan,
+    unrolled), under the Jacobi family up to ``ratio`` extra biased sweeps of light bodies' blocks
+    (Settings.ratio_sweeps) and a second relax sweep after a fast push (Settings.relax_push_speed;
+    their loops run zero times otherwise), every phase's loops parallel, in one launch. ``first``:
+    this substep does its own gravity and warm start; ``then_warm``: its last relax sweep does the
+    next one's (both 1 / 0 decided by ``Schedule.iterate`` with ``folds_warm_start``; a step with
+    an impact row overrides them to 1 / 0, folds_this_step, in substep_loops.py's loops). ``substep``: its index in the step
     (visit_order.visited_point)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     s, rows, c, bodies, col = b.blocks, b.rows, b.contacts, b.bodies, b.coloring
@@ -163,9 +162,11 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     else:
         gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
         _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
-        _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h, substep)
+        for _ in ti.static(range(biased)):
+            _sweep(schedule, s, rows, c, bodies, awake, col, kind, BIASED, friction, 0, gravity, h, substep)
         positions_loop(bodies, awake, motion, h)
-        _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h, substep)
+        for _ in ti.static(range(relax)):
+            _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h, substep)
         if ti.static(track):
             add_step_impulses_loop(rows, c)
 

@@ -11,7 +11,7 @@ start switches, the fast-push flag), run to their buffers' capacities under CUDA
 arguments at the top level (``ti.template()``: passed as expressions, evaluated inside the loops).
 The warm start's gather also clears the fast-push flag, and the last biased sweep's gather
 advances the poses (each body's pose reads its own velocities only): 8 tasks per substep instead
-of 18 (2 more per extra sweep of either kind, Settings.split_step_sweeps), the same arithmetic in
+of 18 (2 more per extra sweep of either kind, Settings.step_sweeps), the same arithmetic in
 the same order, so the same bits (tests/test_dispatch.py).
 """
 
@@ -79,7 +79,7 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
     """``substep.substep_parallel`` for the Jacobi family (its arguments, as expressions; a range
     is written in each loop's header: a name assigned here would be a statement). ``biased``,
     ``relax``: the substep's sweeps of each kind (formulation.SweepPlan; more than one at few
-    iterations, Settings.split_step_sweeps), unrolled as ``ratio`` is. ``ratio``: the
+    iterations, Settings.step_sweeps), unrolled as ``ratio`` is. ``ratio``: the
     extra sweeps of light bodies' blocks (Settings.ratio_sweeps, formulation.SweepPlan.ratio),
     unrolled: 2 ``ratio`` + 1 loops more, which run empty in a step without a light body. This
     step's count ``s.light_sweeps`` is 0 or ``ratio`` (written from the same plan's row
