@@ -45,11 +45,16 @@ KNOWN_FAILURES = {
     # (Settings.contact_rocking_stiffness): serial and coloured PGS hold it at 4 (8.0 / 2.9 mm; serial PGS's
     # plain column, which leaned over after ~700 steps, 7.1 mm), mass splitting and Jacobi from 8; block mass
     # splitting, left out of it, from 8 as before
-    ("nudged_stack_20", "jacobi@4"): "the nudged column leans at 4 iterations (top 33.4 mm in 10 s; 153.6 mm)",
-    ("nudged_stack_20", "mass-splitting@4"): "the nudged column leans at 4 iterations (top 37.6 mm in 10 s; 150.3 mm)",
+    # (2026-11-28: run on to 30 s, benchmarks/stability_matrix.py WATCH, each of these four columns falls,
+    # its top reaching 22-24 m/s: the lean slowed, it did not stop)
+    ("nudged_stack_20", "jacobi@4"): "the nudged column leans at 4 iterations (top 33.4 mm in 10 s; 153.6 mm) "
+                                     "and falls within 30 s",
+    ("nudged_stack_20", "mass-splitting@4"): "the nudged column leans at 4 iterations (top 37.6 mm in 10 s; "
+                                             "150.3 mm) and falls within 30 s",
     ("nudged_stack_20", "block-mass-splitting@4"): "the nudged column buckles at 4 iterations (top 137.3 mm in 10 s; "
-                                                   "668.3 mm)",
-    ("stack_20", "block-mass-splitting@4"): "the column leans at 4 iterations (top 176.3 mm in 10 s; 811.7 mm)",
+                                                   "668.3 mm) and falls within 30 s",
+    ("stack_20", "block-mass-splitting@4"): "the column leans at 4 iterations (top 176.3 mm in 10 s; 811.7 mm) and "
+                                            "falls within 30 s",
     # serial PGS's card house, which collapsed at 4 iterations since its visiting order turns every substep
     # (2026-11-26), stands since the PGS solvers sweep twice of each kind per substep there too (0.21 mm)
 }
@@ -113,3 +118,13 @@ def test_long_run_of_a_resting_block(request, solver):
         pytest.skip("stress only (pytest --stress): 10 000 steps")
     r = run_case(CASES["resting_block_27"], solver, 15, steps=10_000, arch=TEST_ARCH)
     assert r.passed, r.figures
+
+
+def test_watching_past_the_window_leaves_the_verdict_alone():
+    """run_case's ``watch`` (the stability matrix's WATCH): the world runs on for the peak speed and
+    the energy gain, while the judge reads the case's own window, so no criterion moves."""
+    case = CASES["nudged_stack_20"]
+    window = run_case(case, "mass-splitting", 4, steps=40, arch=TEST_ARCH)
+    watched = run_case(case, "mass-splitting", 4, steps=40, arch=TEST_ARCH, watch=3)
+    assert (watched.passed, watched.figures) == (window.passed, window.figures)
+    assert watched.peak_speed >= window.peak_speed and watched.energy_gain >= window.energy_gain
