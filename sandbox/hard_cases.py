@@ -248,12 +248,13 @@ def run_case(case: Case, solver: str, iterations: int, steps: int | None = None,
             st = world.state()
             energy = m["kinetic_energy"] + float(np.sum(weights * st["position"]))
             run.energy_gain = max(run.energy_gain, energy - energy0)
-            peak = max(peak, float(np.linalg.norm(st["linear_velocity"], axis=1).max()))
+            speed = float(np.linalg.norm(st["linear_velocity"], axis=1).max())
+            peak = max(peak, speed)
             if k >= window:
                 continue
             run.ke.append(m["kinetic_energy"])
             run.max_penetration.append(m["max_penetration"])
-            run.max_speed.append(float(np.linalg.norm(st["linear_velocity"], axis=1).max()))
+            run.max_speed.append(speed)
             sideways = np.linalg.norm(st["position"][:, :2] - run.start["position"][:, :2], axis=1)
             run.peak_sideways = sideways if run.peak_sideways is None else np.maximum(run.peak_sideways, sideways)
             if k == window - 1:
