@@ -16,7 +16,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from sandbox import EFFECTS, FORMULATIONS, SOLVERS, EventSpec, SandboxError, Scene, resolve_scene, shipped_scenes
+from sandbox import (EFFECTS, FORMULATIONS, SOLVERS, EventSpec, SandboxError, Scene, Settings, resolve_scene,
+                     shipped_scenes)
 
 from .debris import DEBRIS_MIXES, MAX_DEBRIS, debris_bodies
 from .readouts import LOG_FLOOR, decades, inspection_text, stats_table
@@ -72,7 +73,12 @@ class ControlPanel:
             self.shuffle = gui.add_checkbox(f"Shuffle order ({shufflers})", False,
                                             hint="Permute contacts and colours every step, as parallel hardware does")
             self.shuffle.on_update(self._on_solver)
-            self.iterations = gui.add_slider("Iterations", 1, MAX_ITERATIONS, 1, int(min(snap.iterations, MAX_ITERATIONS)))
+            floor, start = Settings().step_sweeps, int(min(snap.iterations, MAX_ITERATIONS))
+            self.iterations = gui.add_slider("Iterations", 1, MAX_ITERATIONS, 1, start,
+                                             hint=f"Soft step: substeps per step, each a biased and a relax "
+                                             f"sweep; below {floor} (the default step_sweeps) a substep sweeps "
+                                             f"ceil({floor} / iterations) times of each kind, so fewer iterations "
+                                             f"cost about as much as {floor}. Paper: the sweeps of its one solve")
             self.iterations.on_update(self._on_iterations)
             self.formulation = gui.add_dropdown("Formulation", list(FORMULATIONS), initial_value=snap.formulation,
                                                 hint="soft-step: Box2D v3's substeps with soft contacts; paper: "
