@@ -151,8 +151,8 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     their loops run zero times otherwise), every phase's loops parallel, in one launch. ``first``:
     this substep does its own gravity and warm start; ``then_warm``: its last relax sweep does the
     next one's (both 1 / 0 decided by ``Schedule.iterate`` with ``folds_warm_start``; a step with
-    an impact row overrides them to 1 / 0, folds_this_step, in substep_loops.py's loops). ``substep``: its index in the step
-    (visit_order.visited_point)."""
+    an impact row overrides them to 1 / 0, folds_this_step, in substep_loops.py's loops; the PGS
+    solvers' sweeps ignore it). ``substep``: its index in the step (visit_order.visited_point)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     s, rows, c, bodies, col = b.blocks, b.rows, b.contacts, b.bodies, b.coloring
     if ti.static(schedule == BLOCKS):  # loops and nothing between them (substep_loops.py says why)
