@@ -50,6 +50,7 @@ class HostWorld:
     has_gyroscopic: bool = False  # some dynamic body's inertia is not a multiple of the identity
     has_damping: bool = False  # some dynamic body has linear or angular damping > 0
     has_rolling_friction: bool = False  # some body has rolling or torsional friction > 0
+    mass_spread: float = 1.0  # the heaviest dynamic body's mass over the lightest's (effects.py)
 
     def capacities(self, pairs: int | None = None, grid_entries: int | None = None, reserve_pieces: int = 0) -> Capacities:
         """Capacity classes for this world, with room for ``reserve_pieces`` added bodies (fracture
@@ -196,7 +197,13 @@ def host_world(scene: Scene, settings: Settings) -> HostWorld:
     host.has_gyroscopic = any_anisotropic(inertia[inv_mass > 0])
     host.has_damping = bool(np.any(damping > 0))
     host.has_rolling_friction = bool(np.any(rolling > 0))
+    host.mass_spread = mass_spread(inv_mass[inv_mass > 0])
     return host
+
+
+def mass_spread(inv_masses: np.ndarray) -> float:
+    """[1] The heaviest of these bodies' masses over the lightest's (1 for fewer than two)."""
+    return float(inv_masses.max() / inv_masses.min()) if len(inv_masses) > 1 else 1.0
 
 
 ISOTROPY_TOLERANCE = 1e-6

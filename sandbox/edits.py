@@ -28,6 +28,7 @@ Nothing here knows the World or the solvers: the facade (world.py) calls these m
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -35,7 +36,7 @@ from . import buffers, sleep, sleep_rebuild
 from .awake import EVERY
 from .backend import loop_arch
 from .dispatch import dispatch_for
-from .build import host_world, upload
+from .build import host_world, mass_spread, upload
 from .errors import CapacityError, SandboxError
 from .fracture import FractureError, check_arguments, fracture_body, piece_count
 from .host_counters import StepCounters
@@ -74,6 +75,10 @@ class Edits:
         self.reserve_kinds = tuple(sorted(reserve_kinds))
         # a box, capsule or hull may be added (by the caller or the scene's own drops):
         self.anisotropic_reserved = any(k != "sphere" for k in reserve_kinds + drop_kinds)
+        # and a body far lighter or heavier than the others (effects.py, light_bodies): a piece, a
+        # reserved body or one of a reserved kind may have any mass, a scene's drops have theirs
+        any_mass = reserve > len(dropped) or bool(reserve_kinds)
+        self.spread_reserved = math.inf if any_mass else dropped_spread(scene.bodies, dropped)
         self._finalizer = None
         self.placed = np.arange(len(self.host.body_arrays["inv_mass"]))  # bodies no narrowphase has seen
         self._acquire(self.host.capacities(reserve_pieces=reserve))
@@ -411,6 +416,13 @@ def _fracture_reserve(scene: Scene) -> int:
             total += sum(piece_count(bodies[i], event.pieces) if i < len(bodies) else event.pieces
                          for i in event.bodies)
     return total
+
+
+def dropped_spread(bodies: list, dropped: list) -> float:
+    """[1] The mass spread of a scene's dynamic bodies with the ones its drops add (1 without drops)."""
+    if not dropped:
+        return 1.0
+    return mass_spread(np.asarray([1.0 / b.mass for b in list(bodies) + list(dropped) if not b.static]))
 
 
 def finite_vector(value, what: str) -> np.ndarray:

@@ -179,7 +179,9 @@ class World:
     def compiled_effects(self) -> CompiledEffects:
         """The effects the step's kernels are compiled with now: those asked for that some body
         can use, and those the bodies call for (effects.py)."""
-        return compile_effects(self.effects, self._edits.host, self.settings, self._edits.anisotropic_reserved)
+        edits = self._edits
+        return compile_effects(self.effects, edits.host, self.settings, edits.anisotropic_reserved,
+                               edits.spread_reserved)
 
     @property
     def effects(self) -> tuple:

@@ -5,7 +5,9 @@ motion only where it would have acted."""
 import numpy as np
 import pytest
 
-from sandbox import SandboxError, Scene, World
+from sandbox import SandboxError, Scene, Settings, World
+from sandbox.scene.library import resolve_scene
+from sandbox.solvers.schedule import Schedule
 from sandbox.scene.rotations import quat_to_matrix
 from tests.helpers import TEST_ARCH, box_body, plane, scene_dict, sphere_body
 
@@ -30,13 +32,14 @@ def test_an_effect_is_compiled_in_where_a_body_uses_it():
     cubes = [box_body([0.0, 0.0, 0.5])]
     assert _world(cubes).compiled_effects.as_dict() == {"friction": True, "restitution": False,
                                                         "gyroscopic": False, "sleeping": False, "damping": False,
-                                                        "rolling_friction": False, "speculative": True}
+                                                        "rolling_friction": False, "speculative": True,
+                                                        "light_bodies": False}
     plank = [box_body([0.0, 0.0, 0.5], half=(1.0, 0.25, 0.1))]  # anisotropic inertia
     assert _world(plank).compiled_effects.gyroscopic
     bouncy = [box_body([0.0, 0.0, 0.5], restitution=0.5)]
     assert _world(bouncy, effects=("restitution", "sleeping")).compiled_effects.as_dict() == {
         "friction": False, "restitution": True, "gyroscopic": False, "sleeping": True, "damping": False,
-        "rolling_friction": False, "speculative": True}
+        "rolling_friction": False, "speculative": True, "light_bodies": False}
 
 
 def test_adding_a_body_recompiles_for_what_it_needs():
@@ -65,6 +68,36 @@ def test_reserved_kinds_compile_what_a_later_plank_needs_from_the_start():
     assert not spheres.compiled_effects.gyroscopic
     with pytest.raises(SandboxError, match="unknown shape kind"):
         World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch=TEST_ARCH, reserve_kinds=("cone",))
+
+
+def test_the_light_bodies_sweeps_compile_in_where_masses_differ_enough():
+    """The Jacobi family's extra sweeps over light bodies' blocks (light_bodies.py) are compiled in
+    while some dynamic body is ``ratio_mass`` times lighter than another, or may become so (a
+    scene's drops, reserved kinds); without them a step plans no extra sweep (on a GPU, five
+    launches fewer per substep)."""
+    world = World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5 + i]) for i in range(2)])),
+                  solver="mass-splitting", iterations=4, arch=TEST_ARCH)
+    assert not world.compiled_effects.light_bodies
+    schedule = Schedule("mass-splitting", {})
+    assert schedule.plan(world.settings, 4, world.compiled_effects.light_bodies).ratio == 0
+    heavy = Scene.from_dict(scene_dict([box_body([3.0, 0.0, 0.5], mass=5000.0)])).bodies[0]  # 5x a 1000 kg cube
+    world.add_bodies([heavy])
+    assert world.compiled_effects.light_bodies
+    assert schedule.plan(world.settings, 4, world.compiled_effects.light_bodies).ratio == Settings().ratio_sweeps
+    world.step(2)
+    world.remove_bodies([2])
+    assert not world.compiled_effects.light_bodies
+    spread = [box_body([0.0, 0.0, 0.5]), box_body([3.0, 0.0, 0.5], mass=4000.0)]  # 4-fold: below ratio_mass
+    assert not _world(spread).compiled_effects.light_bodies
+    four = World(Scene.from_dict(scene_dict(spread)), arch=TEST_ARCH, settings=Settings(ratio_mass=4.0))
+    assert four.compiled_effects.light_bodies
+    off = World(Scene.from_dict(scene_dict(spread)), arch=TEST_ARCH, settings=Settings(ratio_mass=4.0, ratio_sweeps=0))
+    assert not off.compiled_effects.light_bodies
+    reserved = World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch=TEST_ARCH, reserve_kinds=("box",))
+    assert reserved.compiled_effects.light_bodies
+    drops = Scene.load(resolve_scene("scripted_drop_300"))  # equal boxes now, heavier ones dropped later
+    assert len({b.mass for b in drops.bodies if not b.static}) == 1
+    assert World(drops, arch=TEST_ARCH).compiled_effects.light_bodies
 
 
 def test_cubes_and_spheres_turn_freely_without_the_gyroscopic_step():

@@ -95,14 +95,15 @@ class Schedule:
             return 1.0
         return float(getattr(settings, name)) if name else 1.0
 
-    def ratio_sweeps(self, settings) -> int:
+    def ratio_sweeps(self, settings, light_bodies: bool = True) -> int:
         """Settings.ratio_sweeps for the Jacobi family, whose split sweep moves a heavy body's load
-        into a light one a share at a time; 0 for the PGS solvers."""
-        return settings.ratio_sweeps if self.visit == substep.BLOCKS else 0
+        into a light one a share at a time; 0 for the PGS solvers and in a world without a light
+        body (``light_bodies``: CompiledEffects.light_bodies)."""
+        return settings.ratio_sweeps if self.visit == substep.BLOCKS and light_bodies else 0
 
-    def plan(self, settings, iterations: int):
+    def plan(self, settings, iterations: int, light_bodies: bool = True):
         """This schedule's formulation.SweepPlan for a step of ``iterations`` under ``settings``."""
-        return sweep_plan(settings.formulation, iterations, settings.sweeps, self.ratio_sweeps(settings),
+        return sweep_plan(settings.formulation, iterations, settings.sweeps, self.ratio_sweeps(settings, light_bodies),
                           settings.step_sweeps)
 
     def adjacency_args(self, buf, settings) -> tuple:
