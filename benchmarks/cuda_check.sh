@@ -2,13 +2,14 @@
 # The checks to run when a GPU is lent (docs/bench.md, "On a GPU"), in the order of what they
 # are worth per minute, each under its own time limit, every result also written to $OUT:
 #   OUT=/tmp/cuda bash benchmarks/cuda_check.sh
-# 1. ms/step by stage for the pyramid, the pile and the 5000-box scene (the first figures since
-# the substep launch became its loops alone, d31e18e: 3.30 / 3.49 / 5.13 ms/step before, H200,
-# docs/bench.md "The third CUDA run"), and first the same for another tree when BASELINE names
-# one (a carried copy of an older commit: the two timed on the same card); 2. the per-task
-# profile of a pile step (8 substep tasks expected, none serial); 3. the engine tests most
-# likely to meet a GPU-only problem on CUDA (stops at the fourth failure, tracebacks kept).
-# About 7 minutes on an H200. Needs taichi importable (pip install -e ., or the device README's
+# 1. ms/step by stage for the pyramid, the pile and the 5000-box scene (the fourth run, docs/bench.md
+# "The fourth CUDA run", H200: mass splitting 3.0-4.3 / 3.1-4.4 / 5.4 ms/step; Jacobi's step
+# outside the loop ~1 ms more than mass splitting's, not yet explained), and first the same for
+# another tree when BASELINE names one (a carried copy of an older commit: the two timed on the
+# same card); 2. the per-task profile of a pile step (13 substep tasks, none serial; 8 in a world
+# without light bodies' sweeps), and Jacobi's on the pyramid; 3. the engine tests most likely to meet a GPU-only problem on CUDA
+# (stops at the fourth failure, tracebacks kept).
+# About 7 minutes on an H200, 9 with a BASELINE. Needs taichi importable (pip install -e ., or the device README's
 # wheels on PYTHONPATH).
 set -u
 cd "$(dirname "$0")/.."
@@ -28,7 +29,11 @@ timeout -k 10 120 "$PY" "${BENCH[@]}" 2>&1 | tee "$OUT/step_bench.txt"
 timeout -k 10 60 "$PY" benchmarks/kernel_times.py --arch cuda --scene pile_1000 --settle 60 --steps 20 --tasks \
     > "$OUT/tasks.txt" 2>&1
 head -40 "$OUT/tasks.txt"
-SANDBOX_TEST_ARCH=cuda timeout -k 20 270 "$PY" -m pytest -q --tb=short -n 14 --maxfail=4 -p no:cacheprovider \
+# Jacobi's prepare on the card (~1 ms more than mass splitting's in the fourth run): its tasks
+timeout -k 10 60 "$PY" benchmarks/kernel_times.py --arch cuda --scene pyramid_20 --solver jacobi --settle 60 --steps 20 \
+    --tasks > "$OUT/tasks_jacobi.txt" 2>&1
+grep -E "prepare_step|^  " "$OUT/tasks_jacobi.txt" | head -30
+SANDBOX_TEST_ARCH=cuda timeout -k 20 300 "$PY" -m pytest -q --tb=short -n 14 --maxfail=4 -p no:cacheprovider \
     -p no:benchmark tests/test_guard.py tests/test_hard_cases.py tests/test_solvers.py tests/test_stacking.py \
     tests/solvers tests/test_sleeping.py tests/test_dispatch.py > "$OUT/pytest.txt" 2>&1
 status=$?
