@@ -20,6 +20,12 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 
+LIGHT_MARGIN = 0.999
+"""[1] How near a world's mass spread (build.HostWorld.mass_spread) may come to
+``Settings.ratio_mass`` and still leave the light bodies' sweeps out: the kernels' own float32 test
+(light_bodies.mark_light) picks the light bodies, and it must never find one the switch left out."""
+
+
 @dataclass(frozen=True)
 class CompiledEffects:
     friction: bool  # friction rows are built and solved
@@ -29,7 +35,8 @@ class CompiledEffects:
     damping: bool = False  # the position update damps velocities (integrate.advance_pose)
     rolling_friction: bool = False  # torsional and rolling rows are solved (rolling.solve_rolling)
     speculative: bool = True  # AABBs and pair margins grow by the distance a shape can move (broadphase.py)
-    light_bodies: bool = True  # the Jacobi family's extra sweeps over light bodies' blocks (light_bodies.py)
+    light_bodies: bool = True  # the Jacobi family's extra sweeps over light bodies' blocks (light_bodies.py;
+    # compiled out under CUDA's loop shapes only: on the CPU their empty loops cost nothing, step.py)
 
     def as_dict(self) -> dict[str, bool]:
         return asdict(self)
@@ -54,10 +61,3 @@ def compile_effects(asked: tuple, host, settings, anisotropic_reserved: bool = F
         light_bodies=settings.ratio_sweeps > 0
         and max(host.mass_spread, spread_reserved) >= settings.ratio_mass * LIGHT_MARGIN,
     )
-
-
-LIGHT_MARGIN = 0.999
-"""[1] How near a world's mass spread (build.HostWorld.mass_spread) may come to
-``Settings.ratio_mass`` and still leave the light bodies' sweeps out: the kernels' own float32 test
-(light_bodies.mark_light) picks the light bodies, and it must never find one the switch left out."""
-

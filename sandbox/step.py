@@ -124,7 +124,9 @@ class Stepper:
         if c.effects.sleeping and self.edits.buf.sleep.idle:
             return
         b, s, p = self.edits.buf, self.edits.settings, self.profiler
-        plan = c.schedule.plan(s, c.iterations, c.effects.light_bodies)
+        # the light bodies' sweeps leave a GPU's launch only: on the CPU their empty loops cost
+        # nothing and a second set of iteration kernels costs compiling (effects.py)
+        plan = c.schedule.plan(s, c.iterations, c.effects.light_bodies or c.loop_arch == "cpu")
         # the once-per-step stages in three launches, or two (step_kernels.py); a profiler timing
         # stage by stage launches them one by one, one timing launch by launch keeps them (profile.py)
         fused = self.fused and not (p.enabled and p.per_stage)

@@ -12,8 +12,9 @@ stiffer stability limit (contact_spring.LIGHT_LIMIT_SWEEPS, SolverInfo.stiffens_
 The extra sweeps visit listed blocks and bodies only, so on the CPU a scene without such a pair
 pays nothing and a pile with one small box under a big one pays for that box's blocks; a GPU's
 per-substep launch runs their unrolled loops empty (substep_loops.py: five tasks a substep),
-unless no two of the world's dynamic masses differ that much: then they are compiled out
-(effects.py, ``light_bodies``).
+unless no two of the world's dynamic masses differ that much: then a GPU's launch compiles them
+out (effects.py, ``light_bodies``; the CPU keeps its free empty loops rather than compile a second
+set of iteration kernels).
 
 The lists are filled with atomic counters, in no set order: each listed block writes its own
 two slots and each listed body adds its slots in its adjacency's fixed order, so the order of

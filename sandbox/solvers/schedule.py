@@ -103,8 +103,8 @@ class Schedule:
 
     def plan(self, settings, iterations: int, light_bodies: bool = True):
         """This schedule's formulation.SweepPlan for a step of ``iterations`` under ``settings``."""
-        return sweep_plan(settings.formulation, iterations, settings.sweeps, self.ratio_sweeps(settings, light_bodies),
-                          settings.step_sweeps)
+        ratio = self.ratio_sweeps(settings, light_bodies)
+        return sweep_plan(settings.formulation, iterations, settings.sweeps, ratio, settings.step_sweeps)
 
     def adjacency_args(self, buf, settings) -> tuple:
         """(block scratch, kind, mode, omega, scaled responses): the schedule's arguments of

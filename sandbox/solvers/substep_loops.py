@@ -82,7 +82,8 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
     iterations, Settings.step_sweeps), unrolled as ``ratio`` is. ``ratio``: the
     extra sweeps of light bodies' blocks (Settings.ratio_sweeps, formulation.SweepPlan.ratio),
     unrolled: 2 ``ratio`` + 1 loops more, which run empty in a step without a light body (a world
-    whose masses never differ that much compiles them out: ``ratio`` 0, effects.py). This
+    whose masses never differ that much compiles them out under CUDA's loop shapes: ``ratio`` 0,
+    effects.py). This
     step's count ``s.light_sweeps`` is 0 or ``ratio`` (written from the same plan's row
     parameters, light_bodies.list_light_body) and decides whether they run and where the poses
     advance."""
