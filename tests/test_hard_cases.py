@@ -57,6 +57,18 @@ KNOWN_FAILURES = {
                                             "falls within 30 s",
     # serial PGS's card house, which collapsed at 4 iterations since its visiting order turns every substep
     # (2026-11-26), stands since the PGS solvers sweep twice of each kind per substep there too (0.21 mm)
+    # the 1:1000 column struck down by 0.3 m/s after it settled (2026-11-28, docs/method-notes.md "A kicked
+    # column keeps bouncing"): at 15 iterations serial and coloured PGS still it within a second
+    ("kicked_heavy_on_light_1to1000", "*@4"): "at 4 iterations the column is down before the kick (the PGS family "
+                                              "and block mass splitting tip it, 3.7-5.0 m) or sinks 370-375 mm "
+                                              "after it, making energy (mass splitting, Jacobi)",
+    ("kicked_heavy_on_light_1to1000", "mass-splitting@15"): "the kicked column keeps bouncing (mean KE of the last "
+                                                            "second 78 J; 1.2e-6 J before the kick), its energy "
+                                                            "73 J above the start after a 45 J kick",
+    ("kicked_heavy_on_light_1to1000", "jacobi@15"): "the kicked column keeps bouncing (mean KE of the last second "
+                                                    "77 J), its energy 73 J above the start after a 45 J kick",
+    ("kicked_heavy_on_light_1to1000", "block-mass-splitting@15"): "the kicked column stays astir (mean KE of the "
+                                                                  "last second 3.4e-2 J; 6.6e-4 J before the kick)",
 }
 
 
