@@ -75,18 +75,22 @@ class Settings:
     (F K~ h^2 / (S kappa^2)): few iterations sag, they never fly. 0 turns the limit off
     (benchmarks/stiffness_limit.py scans the unlimited springs)."""
 
-    ratio_sweeps: int = 2
+    ratio_sweeps: int = 6
     """[1] Biased sweeps more per substep, under the Jacobi family (projected Jacobi, mass splitting,
     block mass splitting), for the contacts of a body resting against one ``ratio_mass`` times
     heavier or more: those rows alone are swept again, and under mass splitting and Jacobi their
-    springs take the stiffness limit of ``sweeps`` + this many sweeps, + 2 at most
-    (``contact_stiffness_limit``, contact_spring.LIGHT_LIMIT_SWEEPS). Why: a split sweep moves a
-    heavy body's load into a light one by a 1 / n_b share per sweep, and the capped spring that one
-    sweep can hold lets a 1000 kg box on 100, 10 and 1 kg boxes sink 61.5 mm at 8 iterations; the
-    rows need both the sweeps and the stiffness those sweeps carry (either alone: 58-962 mm;
-    docs/method-notes.md, "The 1:1000 column at 8 iterations"). 2: 15.9 mm there; 3 and 6: 11.5 and
-    9.2 mm, at more cost in scenes with such pairs. A scene without such a pair runs none (0 turns
-    them off). Ignored by the PGS solvers and under the paper formulation."""
+    springs take the stiffness limit of the sweeps they get (``contact_stiffness_limit``,
+    contact_spring.light_sweeps: kappa sqrt(2 + 6) at 8 iterations and more). Why: a split sweep
+    moves a heavy body's load into a light one by a 1 / n_b share per sweep, and the capped spring
+    that one sweep can hold lets a 1000 kg box on 100, 10 and 1 kg boxes sink 61.5 mm at 8
+    iterations; the rows need both the sweeps and the stiffness those sweeps carry (either alone:
+    58-962 mm; docs/method-notes.md, "The 1:1000 column at 8 iterations"). 6: 5.8 mm there, and the
+    column struck from above at 15 iterations comes back to rest (its transient sinks 16.5 mm);
+    2 with the limit its sweeps carry: 21.3 mm, the struck column sinks 35.9 mm (docs/method-notes.md,
+    "A kicked column: light rows stiffer than their sweeps"). Its price is in scenes with such pairs
+    (confined_pile, 35 % of its points: the iteration loop 4.7 -> 8.6 ms/step at 15 iterations);
+    a scene without such a pair runs none (0 turns them off). Ignored by the PGS solvers and under
+    the paper formulation."""
 
     step_sweeps: int = 8
     """[1] The fewest sweeps of each kind a step runs, under every schedule of the soft step: at

@@ -18,7 +18,7 @@ from sandbox import SOLVERS, SandboxError, Scene, Settings, World
 from sandbox.formulation import SweepPlan
 from sandbox.scene.library import SCENES_DIR
 from sandbox.settings import MAX_STEP_SWEEPS
-from sandbox.solvers.contact_spring import LIGHT_LIMIT, LIGHT_LIMIT_SWEEPS, STIFFNESS_LIMIT, row_params
+from sandbox.solvers.contact_spring import LIGHT_LIMIT, STIFFNESS_LIMIT, row_params
 from sandbox.solvers.schedule import Schedule
 
 from tests.helpers import TEST_ARCH, box_body, plane, scene_dict
@@ -82,7 +82,7 @@ def test_every_schedule_sweeps_8_times_a_step_at_least(solver):
     is one sweep of each. The GPU's launch per substep unrolls them (up to MAX_STEP_SWEEPS of
     each; more falls back to a launch per stage), and the rows' springs take the stability limit
     of the sweeps run (kappa sqrt(S), S = biased + relax; a light body's rows under mass
-    splitting and Jacobi up to LIGHT_LIMIT_SWEEPS biased sweeps more)."""
+    splitting and Jacobi count their Settings.ratio_sweeps biased sweeps more)."""
     schedule, info = Schedule(solver, {}), SOLVERS[solver]
     kappa = Settings().contact_stiffness_limit
     for iterations, each in ((1, 8), (2, 4), (3, 3), (4, 2), (5, 2), (7, 2), (8, 1), (15, 1), (30, 1)):
@@ -91,8 +91,8 @@ def test_every_schedule_sweeps_8_times_a_step_at_least(solver):
         params = row_params(Settings(), 1.0 / 60.0 / iterations, plan.biased, 1.0 / 60.0, (0.0, 0.0, -G),
                             info.stiffens_rocking, plan.ratio, info.stiffens_light_rows)
         assert params[STIFFNESS_LIMIT] == pytest.approx(kappa * np.sqrt(2.0 * each)), iterations
-        light = each + (min(plan.ratio, LIGHT_LIMIT_SWEEPS) if info.stiffens_light_rows else 0)
-        assert params[LIGHT_LIMIT] == pytest.approx(kappa * np.sqrt(2.0 * light)), iterations
+        light = 2 * each + (plan.ratio if info.stiffens_light_rows else 0)
+        assert params[LIGHT_LIMIT] == pytest.approx(kappa * np.sqrt(light)), iterations
     assert schedule.plan(Settings(step_sweeps=0), 4).biased == 1
     assert schedule.plan(Settings(step_sweeps=12, sweeps=2), 4).biased == 3
     assert schedule.plan(Settings(formulation="paper"), 4) == SweepPlan(substeps=1, biased=4, relax=0)

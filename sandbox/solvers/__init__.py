@@ -104,8 +104,9 @@ class SolverInfo:
         those sweeps: the schedules whose block is one point, where a light body's split counts
         its points, not its manifolds, and whose limit is that much lower. Measured on the 1:1000
         column: mass splitting at 8 iterations holds with the sweeps and their limit (late
-        penetration 15.9 mm) and fails with either alone (58-962 mm); block mass splitting holds at
-        15 with the sweeps alone (6.6 mm drift) and tips with their limit (53.7 mm)."""
+        penetration 15.9 mm with two sweeps, 5.8 mm with six) and fails with either alone (58-962 mm);
+        block mass splitting holds at 15 with the sweeps alone (6.6 mm drift with two) and tips with
+        their limit (53.7 mm)."""
         return self.block == "point"
 
     @property

@@ -23,8 +23,9 @@ took):
    force of the body the contact holds up (the upward component of all its support
    impulses, averaged over ``contact_load_time``) shared equally among that body's support
    points (``mass_splitting.update_support``): what the body weighs, with what it carries;
-3. the stability limit of the schedule: ``omega h <= kappa sqrt(S K / K~)`` (a light body's rows
-   under mass splitting and Jacobi take a stiffer one, measured: LIGHT_LIMIT_SWEEPS).
+3. the stability limit of the schedule: ``omega h <= kappa sqrt(S K / K~)``, S the sweeps the row
+   gets per substep (a light body's rows, swept again under the Jacobi family, count their extra
+   sweeps under mass splitting and Jacobi: LIGHT_LIMIT).
 
 Why the limit (docs/method-notes.md, "Why low iteration counts blew up"): a sweep steps a
 row by ``dl = -(J v + b + gamma lambda) / (K~ + gamma)``, where K~ is the response the
@@ -94,16 +95,6 @@ for the rows of a body resting against a far heavier one, their kappa sqrt(S) [1
 sweeps counted, the mass ratio that marks them [1] and their extra sweeps per substep [1]
 (Settings.ratio_sweeps, ratio_mass; 0 sweeps: none this step, formulation.SweepPlan.ratio)."""
 
-LIGHT_LIMIT_SWEEPS = 2
-"""The most of a light body's extra sweeps (Settings.ratio_sweeps) its rows' stability limit counts:
-they take the limit ``row_params`` gives a substep of ``sweeps`` + that many sweeps of each kind,
-kappa sqrt(2 (1 + 2)) at the defaults. A measured choice, not the module's argument, which counts
-the sweeps a substep gives those rows (1 + 2 biased and 1 relax: kappa sqrt(4)). Measured on the 1:1000 column under mass splitting at 8 iterations (late penetration, criterion
-20 mm): with the limit of 1 + 2 sweeps, 2 / 3 / 6 extra sweeps leave 15.9 / 11.5 / 9.2 mm; with a
-limit that counts every extra sweep, 3 / 4 / 6 leave 107.9 / 91.1 / 70.6 mm, and one that counts
-all but one, 4 / 5 / 6 leave 7.6 / 6.0 / 64.8 mm: past about three sweeps' limit the stiffer
-springs lose more than the sweeps give (docs/method-notes.md)."""
-
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
 
@@ -116,8 +107,9 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: boo
     [m/s^2] (step.py writes them into ``Rows.params``); ``rocking``: the schedule stiffens a face's
     rocking (SolverInfo.stiffens_rocking); ``ratio_sweeps``: the biased sweeps more of the rows of a
     body resting against a far heavier one (formulation.SweepPlan.ratio), whose springs take the
-    limit of ``sweeps`` + that many sweeps, at most LIGHT_LIMIT_SWEEPS, when ``light_stiffer``
-    (SolverInfo.stiffens_light_rows)."""
+    limit of the sweeps they get, ``sweeps`` biased + ``ratio_sweeps`` + ``sweeps`` relax, when
+    ``light_stiffer`` (SolverInfo.stiffens_light_rows; docs/method-notes.md, "A kicked column:
+    light rows stiffer than their sweeps")."""
 
     values = [0.0] * PARAM_COUNT
     values[INV_H] = 1.0 / h
@@ -142,11 +134,20 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: boo
     values[OVERLAP_PUSH] = settings.overlap_push_speed
     values[SPLIT_BOUND] = settings.split_relaxation if settings.formulation != PAPER else 1.0
     values[ROCKING] = settings.contact_rocking_stiffness if rocking else 0.0
-    light_sweeps = sweeps + (min(ratio_sweeps, LIGHT_LIMIT_SWEEPS) if light_stiffer else 0)
-    values[LIGHT_LIMIT] = settings.contact_stiffness_limit * math.sqrt(2.0 * light_sweeps)
+    values[LIGHT_LIMIT] = settings.contact_stiffness_limit * math.sqrt(light_sweeps(sweeps, ratio_sweeps, light_stiffer))
     values[RATIO_MASS] = settings.ratio_mass
     values[RATIO_SWEEPS] = float(ratio_sweeps)
     return values
+
+
+def light_sweeps(sweeps: int, ratio_sweeps: int, light_stiffer: bool) -> int:
+    """S of a light body's rows in the stability limit: the sweeps a substep gives them, ``sweeps``
+    biased and as many relax, and ``ratio_sweeps`` more biased when the schedule stiffens them for
+    those (``light_stiffer``). Until 2026-11-28 they took the limit of ``sweeps`` + 2 sweeps of each
+    kind, kappa sqrt(6), with 2 extra sweeps, i.e. 4 per substep: stiffer than their sweeps can damp.
+    The 1:1000 column held still, but struck it bounced for good at 15 iterations, making ~120 J
+    (docs/method-notes.md)."""
+    return 2 * sweeps + (ratio_sweeps if light_stiffer else 0)
 
 
 def relax_push_limit(settings) -> float:
@@ -167,7 +168,7 @@ def row_omega(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.f
     """(omega, the omega asked for before the stability limit) [rad/s] of a row with unsplit
     response ``k_true``, the schedule's ``k_split``, averaged normal force ``load`` [N] and pair
     size ``size`` [m] (module docstring); ``light`` = 1: a light body's row, swept more and
-    limited as LIGHT_LIMIT_SWEEPS says (Settings.ratio_sweeps)."""
+    limited for those sweeps (light_sweeps, Settings.ratio_sweeps)."""
     omega = params[OMEGA]
     deflection = params[DEFLECTION] * size
     if deflection > 0.0 and load > 0.0:

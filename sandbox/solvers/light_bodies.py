@@ -8,7 +8,8 @@ So the lighter body of a touching pair of dynamic bodies whose masses differ
 ``Settings.ratio_mass``-fold or more is marked *light*; every block of a light body (its pairs
 with the heavy body, the ground, its neighbours) is swept ``Settings.ratio_sweeps`` more times
 per substep after the biased sweep, and under mass splitting and Jacobi its rows take a
-stiffer stability limit (contact_spring.LIGHT_LIMIT_SWEEPS, SolverInfo.stiffens_light_rows).
+stiffer stability limit, that of the sweeps they get (contact_spring.light_sweeps,
+SolverInfo.stiffens_light_rows).
 The extra sweeps visit listed blocks and bodies only, so on the CPU a scene without such a pair
 pays nothing and a pile with one small box under a big one pays for that box's blocks; a GPU's
 per-substep launch runs their unrolled loops empty (substep_loops.py: five tasks a substep),
