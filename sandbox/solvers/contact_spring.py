@@ -115,7 +115,8 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: boo
     values[INV_H] = 1.0 / h
     values[OMEGA] = 2.0 * math.pi * min(settings.contact_hertz, 0.25 / h)
     values[ZETA] = settings.contact_damping_ratio
-    values[STIFFNESS_LIMIT] = settings.contact_stiffness_limit * math.sqrt(2.0 * sweeps)
+    kappa = settings.contact_stiffness_limit
+    values[STIFFNESS_LIMIT] = kappa * math.sqrt(2.0 * sweeps)
     values[MAX_PUSH] = settings.max_push_speed
     values[RESTITUTION_THRESHOLD] = settings.restitution_threshold
     values[DEFLECTION] = settings.contact_deflection
@@ -134,7 +135,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: boo
     values[OVERLAP_PUSH] = settings.overlap_push_speed
     values[SPLIT_BOUND] = settings.split_relaxation if settings.formulation != PAPER else 1.0
     values[ROCKING] = settings.contact_rocking_stiffness if rocking else 0.0
-    values[LIGHT_LIMIT] = settings.contact_stiffness_limit * math.sqrt(light_sweeps(sweeps, ratio_sweeps, light_stiffer))
+    values[LIGHT_LIMIT] = kappa * math.sqrt(light_sweeps(sweeps, ratio_sweeps, light_stiffer))
     values[RATIO_MASS] = settings.ratio_mass
     values[RATIO_SWEEPS] = float(ratio_sweeps)
     return values
