@@ -25,7 +25,8 @@ took):
    points (``mass_splitting.update_support``): what the body weighs, with what it carries;
 3. the stability limit of the schedule: ``omega h <= kappa sqrt(S K / K~)``, S the sweeps the row
    gets per substep (a light body's rows, swept again under the Jacobi family, count their extra
-   sweeps under mass splitting and Jacobi: LIGHT_LIMIT).
+   sweeps under mass splitting and Jacobi: LIGHT_LIMIT; those rows are also damped more,
+   Settings.light_damping_ratio).
 
 Why the limit (docs/method-notes.md, "Why low iteration counts blew up"): a sweep steps a
 row by ``dl = -(J v + b + gamma lambda) / (K~ + gamma)``, where K~ is the response the
@@ -75,8 +76,8 @@ from ..math3d import dot
 
 (INV_H, OMEGA, ZETA, STIFFNESS_LIMIT, MAX_PUSH, RESTITUTION_THRESHOLD, DEFLECTION, LOAD_BLEND, STEP_DT, UP_X, UP_Y,
  UP_Z, GRAVITY_REACH, BAUMGARTE_RATE, IDLE_SHARE, GRAVITY_X, GRAVITY_Y, GRAVITY_Z, PRELOAD, PRELOAD_LAG,
- RELAX_PUSH, OVERLAP_PUSH, SPLIT_BOUND, ROCKING, LIGHT_LIMIT, RATIO_MASS, RATIO_SWEEPS) = range(27)
-PARAM_COUNT = 27
+ RELAX_PUSH, OVERLAP_PUSH, SPLIT_BOUND, ROCKING, LIGHT_LIMIT, RATIO_MASS, RATIO_SWEEPS, LIGHT_ZETA) = range(28)
+PARAM_COUNT = 28
 """Slots of ``Rows.params``: the substep rate [1/s], the asked-for omega [rad/s], zeta,
 kappa sqrt(S) [1], the push-speed cap [m/s], the restitution threshold [m/s], the load
 deflection [1], the support average's blend per step [1], the step [s], the up
@@ -93,7 +94,8 @@ projected Jacobi's global factor takes for its busiest body (mass_splitting.py),
 row's rocking stiffness may exceed its capped spring [1] (Settings.contact_rocking_stiffness), and
 for the rows of a body resting against a far heavier one, their kappa sqrt(S) [1] with their extra
 sweeps counted, the mass ratio that marks them [1] and their extra sweeps per substep [1]
-(Settings.ratio_sweeps, ratio_mass; 0 sweeps: none this step, formulation.SweepPlan.ratio)."""
+(Settings.ratio_sweeps, ratio_mass; 0 sweeps: none this step, formulation.SweepPlan.ratio), and
+their damping ratio [1] (Settings.light_damping_ratio)."""
 
 SUPPORT_COS = 0.7071
 """A contact supports the body it pushes when its push is within 45 degrees of up."""
@@ -138,6 +140,7 @@ def row_params(settings, h: float, sweeps: int, dt: float, gravity, rocking: boo
     values[LIGHT_LIMIT] = kappa * math.sqrt(light_sweeps(sweeps, ratio_sweeps, light_stiffer))
     values[RATIO_MASS] = settings.ratio_mass
     values[RATIO_SWEEPS] = float(ratio_sweeps)
+    values[LIGHT_ZETA] = settings.light_damping_ratio
     return values
 
 
@@ -196,11 +199,10 @@ def rocking_share(params: ti.template(), omega: ti.f32, wanted: ti.f32) -> ti.f3
 
 
 @ti.func
-def spring(params: ti.template(), omega: ti.f32, k_true: ti.f32):
-    """(bias rate [1/s], compliance gamma) of a spring of ``omega`` on a row of response
-    ``k_true`` over one substep (Box2D v3 ``b2MakeSoft`` in the compliance form)."""
+def spring(params: ti.template(), omega: ti.f32, k_true: ti.f32, zeta: ti.f32):
+    """(bias rate [1/s], compliance gamma) of a spring of ``omega`` and damping ratio ``zeta`` on a
+    row of response ``k_true`` over one substep (Box2D v3 ``b2MakeSoft`` in the compliance form)."""
     h = 1.0 / params[INV_H]
-    zeta = params[ZETA]
     return omega / (2.0 * zeta + h * omega), k_true / (h * omega * (2.0 * zeta + h * omega))
 
 
@@ -218,7 +220,7 @@ def row_spring(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.
     rocking = 0.0
     if rate <= 0.0:
         omega, wanted = row_omega(params, k_true, k_split, load, size, light)
-        rate, gamma = spring(params, omega, k_true)
+        rate, gamma = spring(params, omega, k_true, params[LIGHT_ZETA] if light else params[ZETA])
         rocking = rocking_share(params, omega, wanted)
         if params[DEFLECTION] > 0.0:
             held = omega * omega * params[DEFLECTION] * size / k_true  # [N] the spring's force at the deflection
