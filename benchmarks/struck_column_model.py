@@ -1,0 +1,123 @@
+"""A 1-D model of the struck 1:1000 column under the split schedule's soft step: why the light
+rows need more damping (docs/method-notes.md, "A struck column at 8 iterations").
+
+Boxes of 1, 10, 100 and 1000 kg stand on the ground, one normal row per contact. Each substep:
+gravity, the warm start, 1 + ``--extra`` biased Jacobi sweeps dividing by the split response
+K~ = sum n_b / m_b, the position update, one rigid relax sweep. Every row is capped at
+kappa sqrt(S K / K~) (S = 2 + extra, contact_spring.light_sweeps) and preloaded with the static load
+above it beyond what its spring holds at the deflection; below its preload a row is rigid, as in
+rows.solve_point (``--offset``: soft there too). After ``--settle`` steps the top box is struck down.
+
+    python benchmarks/struck_column_model.py                 # zeta x iterations table
+    python benchmarks/struck_column_model.py --offset        # rows soft below their preload
+
+Prints, per damping ratio and iteration count, the mean kinetic energy of the last second and the
+deepest penetration after the kick, and the spectral radius of the substep map of the soft regime
+(every row above its preload: a linear map, stable when below 1).
+"""
+
+import argparse
+
+import numpy as np
+
+MASSES = np.array([1.0, 10.0, 100.0, 1000.0])
+G = 9.81
+DT = 1.0 / 60.0
+SLOP = 0.0005
+DEFLECTION = 0.002 * 0.866  # contact_deflection x a unit box's bounding radius [m]
+MAX_PUSH = 3.0
+
+
+def _column(zeta, iterations, extra, kappa):
+    """(J, inverse masses, K~, bias rate, gamma, preload, h) of the column's rows."""
+    n = len(MASSES)
+    jac = np.eye(n) - np.eye(n, k=-1)  # row i: box i's velocity minus the one below it
+    inv = 1.0 / MASSES
+    n_b = np.array([2.0] * (n - 1) + [1.0])  # rows per box
+    k_true = np.abs(jac) @ inv
+    k_split = np.abs(jac) @ (n_b * inv)
+    h = DT / iterations
+    omega = kappa * np.sqrt((2 + extra) * k_true / k_split) / h
+    rate = omega / (2.0 * zeta + h * omega)
+    gamma = k_true / (h * omega * (2.0 * zeta + h * omega))
+    weight_above = G * np.cumsum(MASSES[::-1])[::-1]
+    preload = np.maximum(weight_above - omega ** 2 * DEFLECTION / k_true, 0.0) * h
+    return jac, inv, k_split, rate, gamma, preload, h
+
+
+def struck(zeta, iterations, extra=6, kappa=0.6, kick=300.0, settle=600, steps=600, offset=False):
+    """(mean KE of the last second [J], deepest penetration after the kick [m])."""
+    jac, inv, k_split, rate, gamma, preload, h = _column(zeta, iterations, extra, kappa)
+    x = np.arange(len(MASSES)) + 0.5
+    v = np.zeros_like(x)
+    lam = np.zeros_like(x)
+    rest = np.arange(len(MASSES)) * 1.0 + 0.5  # separations are J x - J rest
+
+    def push(dl):
+        return inv * (jac.T @ dl)
+
+    kinetic, depth = [], 0.0
+    for step in range(settle + steps):
+        if step == settle:
+            v[-1] -= kick / MASSES[-1]
+        for _ in range(iterations):
+            v = v - G * h + push(lam)
+            s = jac @ (x - rest)
+            target = np.where(s > 0.0, s / h, np.maximum(rate * np.minimum(s + SLOP, 0.0), -MAX_PUSH))
+            for _ in range(1 + extra):
+                w = jac @ v
+                rigid = lam - (w + target) / k_split
+                soft = lam - (w + target + gamma * (lam - preload)) / (k_split + gamma)
+                use_soft = (rigid > preload) | (offset & (preload > 0.0) & (s <= 0.0))
+                new = np.maximum(np.where(use_soft, soft, rigid), 0.0)
+                v = v + push(new - lam)
+                lam = new
+            x = x + v * h
+            s = jac @ (x - rest)
+            new = np.maximum(lam - (jac @ v + np.maximum(s, 0.0) / h) / k_split, 0.0)
+            v = v + push(new - lam)
+            lam = new
+        if step >= settle:
+            kinetic.append(0.5 * float(MASSES @ (v * v)))
+            depth = max(depth, float(-(jac @ (x - rest)).min()))
+    return float(np.mean(kinetic[-60:])), depth
+
+
+def soft_regime_radius(zeta, iterations, extra=6, kappa=0.6):
+    """Spectral radius of one substep's map (x, v, lambda) -> (x, v, lambda) with every row soft."""
+    jac, inv, k_split, rate, gamma, _, h = _column(zeta, iterations, extra, kappa)
+    n = len(MASSES)
+
+    def substep(z):
+        x, v, lam = z[:n], z[n:2 * n], z[2 * n:]
+        v = v + inv * (jac.T @ lam)
+        s = jac @ x
+        for _ in range(1 + extra):
+            new = lam - (jac @ v + rate * s + gamma * lam) / (k_split + gamma)
+            v, lam = v + inv * (jac.T @ (new - lam)), new
+        x = x + v * h
+        new = lam - (jac @ v) / k_split
+        v, lam = v + inv * (jac.T @ (new - lam)), new
+        return np.concatenate([x, v, lam])
+
+    matrix = np.column_stack([substep(e) for e in np.eye(3 * n)])
+    return float(np.abs(np.linalg.eigvals(matrix)).max())
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--zetas", default="10,20,22,25,30,40")
+    parser.add_argument("--iterations", default="4,8,15")
+    parser.add_argument("--extra", type=int, default=6, help="extra biased sweeps (Settings.ratio_sweeps)")
+    parser.add_argument("--offset", action="store_true", help="preloaded rows stay soft below their preload")
+    args = parser.parse_args()
+    print(f"{'zeta':>5} {'its':>4} {'KE last s [J]':>14} {'max pen [mm]':>13} {'soft-regime radius':>19}")
+    for zeta in (float(z) for z in args.zetas.split(",")):
+        for its in (int(k) for k in args.iterations.split(",")):
+            ke, pen = struck(zeta, its, args.extra, offset=args.offset)
+            radius = soft_regime_radius(zeta, its, args.extra)
+            print(f"{zeta:5g} {its:4d} {ke:14.3g} {pen * 1e3:13.1f} {radius:19.6f}")
+
+
+if __name__ == "__main__":
+    main()
