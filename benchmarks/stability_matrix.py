@@ -77,7 +77,8 @@ def main() -> None:
     lines += ["", "## Energy made at rest", "",
               f"Cells of cases that start at rest where the world's kinetic plus potential energy rose above its "
               f"start at any time within {WATCH} times their window, flying or not (any rise is listed, "
-              "rounding included):", ""]
+              "rounding included; the nudged and the struck column count what their impulse gives, 5e-7 J and "
+              "45 J, so a rise there may be given, not made):", ""]
     lines += [f"* {m}" for m in made] or ["* none"]
     lines.append("")
     with open(a.out, "w") as fh:

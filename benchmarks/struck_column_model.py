@@ -1,12 +1,15 @@
 """A 1-D model of the struck 1:1000 column under the split schedule's soft step: why the light
 rows need more damping (docs/method-notes.md, "A struck column at 8 iterations").
 
-Boxes of 1, 10, 100 and 1000 kg stand on the ground, one normal row per contact. Each substep:
-gravity, the warm start, 1 + ``--extra`` biased Jacobi sweeps dividing by the split response
-K~ = sum n_b / m_b, the position update, one rigid relax sweep. Every row is capped at
-kappa sqrt(S K / K~) (S = 2 + extra, contact_spring.light_sweeps) and preloaded with the static load
-above it beyond what its spring holds at the deflection; below its preload a row is rigid, as in
-rows.solve_point (``--offset``: soft there too). After ``--settle`` steps the top box is struck down.
+Boxes of 1, 10, 100 and 1000 kg stand on the ground, one normal row per contact (the engine's four
+points of a face lumped into one). Each substep: gravity, the warm start, S_b + ``--extra`` biased
+Jacobi sweeps dividing by the split response K~ = sum n_b / m_b, the position update, S_b rigid
+relax sweeps (S_b = ceil(8 / iterations), at least 1: Settings.step_sweeps). A row's spring is
+the engine's (contact_spring.row_omega): 30 Hz or stiffer to hold the load above it within the
+deflection, capped at kappa sqrt(S K / K~) / h with S = 2 S_b + extra (contact_spring.light_sweeps);
+it is preloaded with that load beyond what its spring holds at the deflection, and below its preload
+it is rigid, as in rows.solve_point (``--offset``: soft there too). After ``--settle`` steps the top
+box is struck down. A model, not the engine: it matches the engine's verdicts, not its figures.
 
     python benchmarks/struck_column_model.py                 # zeta x iterations table
     python benchmarks/struck_column_model.py --offset        # rows soft below their preload
@@ -26,6 +29,13 @@ DT = 1.0 / 60.0
 SLOP = 0.0005
 DEFLECTION = 0.002 * 0.866  # contact_deflection x a unit box's bounding radius [m]
 MAX_PUSH = 3.0
+HERTZ = 30.0
+STEP_SWEEPS = 8
+
+
+def sweeps_each(iterations):
+    """Biased (and relax) sweeps of a substep besides the extra ones (formulation.sweep_plan)."""
+    return max(1, -(-STEP_SWEEPS // iterations))
 
 
 def _column(zeta, iterations, extra, kappa):
@@ -37,10 +47,12 @@ def _column(zeta, iterations, extra, kappa):
     k_true = np.abs(jac) @ inv
     k_split = np.abs(jac) @ (n_b * inv)
     h = DT / iterations
-    omega = kappa * np.sqrt((2 + extra) * k_true / k_split) / h
+    weight_above = G * np.cumsum(MASSES[::-1])[::-1]
+    wanted = np.maximum(2.0 * np.pi * min(HERTZ, 0.25 / h), np.sqrt(weight_above * k_true / DEFLECTION))
+    cap = kappa * np.sqrt((2 * sweeps_each(iterations) + extra) * k_true / k_split) / h
+    omega = np.minimum(wanted, cap)
     rate = omega / (2.0 * zeta + h * omega)
     gamma = k_true / (h * omega * (2.0 * zeta + h * omega))
-    weight_above = G * np.cumsum(MASSES[::-1])[::-1]
     preload = np.maximum(weight_above - omega ** 2 * DEFLECTION / k_true, 0.0) * h
     return jac, inv, k_split, rate, gamma, preload, h
 
@@ -56,6 +68,7 @@ def struck(zeta, iterations, extra=6, kappa=0.6, kick=300.0, settle=600, steps=6
     def push(dl):
         return inv * (jac.T @ dl)
 
+    each = sweeps_each(iterations)
     kinetic, depth = [], 0.0
     for step in range(settle + steps):
         if step == settle:
@@ -64,7 +77,7 @@ def struck(zeta, iterations, extra=6, kappa=0.6, kick=300.0, settle=600, steps=6
             v = v - G * h + push(lam)
             s = jac @ (x - rest)
             target = np.where(s > 0.0, s / h, np.maximum(rate * np.minimum(s + SLOP, 0.0), -MAX_PUSH))
-            for _ in range(1 + extra):
+            for _ in range(each + extra):
                 w = jac @ v
                 rigid = lam - (w + target) / k_split
                 soft = lam - (w + target + gamma * (lam - preload)) / (k_split + gamma)
@@ -74,9 +87,10 @@ def struck(zeta, iterations, extra=6, kappa=0.6, kick=300.0, settle=600, steps=6
                 lam = new
             x = x + v * h
             s = jac @ (x - rest)
-            new = np.maximum(lam - (jac @ v + np.maximum(s, 0.0) / h) / k_split, 0.0)
-            v = v + push(new - lam)
-            lam = new
+            for _ in range(each):
+                new = np.maximum(lam - (jac @ v + np.maximum(s, 0.0) / h) / k_split, 0.0)
+                v = v + push(new - lam)
+                lam = new
         if step >= settle:
             kinetic.append(0.5 * float(MASSES @ (v * v)))
             depth = max(depth, float(-(jac @ (x - rest)).min()))
@@ -88,16 +102,19 @@ def soft_regime_radius(zeta, iterations, extra=6, kappa=0.6):
     jac, inv, k_split, rate, gamma, _, h = _column(zeta, iterations, extra, kappa)
     n = len(MASSES)
 
+    each = sweeps_each(iterations)
+
     def substep(z):
         x, v, lam = z[:n], z[n:2 * n], z[2 * n:]
         v = v + inv * (jac.T @ lam)
         s = jac @ x
-        for _ in range(1 + extra):
+        for _ in range(each + extra):
             new = lam - (jac @ v + rate * s + gamma * lam) / (k_split + gamma)
             v, lam = v + inv * (jac.T @ (new - lam)), new
         x = x + v * h
-        new = lam - (jac @ v) / k_split
-        v, lam = v + inv * (jac.T @ (new - lam)), new
+        for _ in range(each):
+            new = lam - (jac @ v) / k_split
+            v, lam = v + inv * (jac.T @ (new - lam)), new
         return np.concatenate([x, v, lam])
 
     matrix = np.column_stack([substep(e) for e in np.eye(3 * n)])

@@ -86,6 +86,12 @@ def test_unknown_settings_are_refused():
                                                 ("contact_rocking_stiffness", -0.5, "contact_rocking_stiffness must be a "
                                                                                     "finite number >= 0"),
                                                 ("contact_rocking_stiffness", float("nan"), "contact_rocking_stiffness"),
+                                                ("contact_damping_ratio", -1.0, "contact_damping_ratio must be a "
+                                                                                "finite number >= 0"),
+                                                ("contact_damping_ratio", float("inf"), "contact_damping_ratio must"),
+                                                ("light_damping_ratio", -1.0, "light_damping_ratio must be a "
+                                                                              "finite number >= 0"),
+                                                ("light_damping_ratio", float("nan"), "light_damping_ratio must"),
                                                 # 0 would make every resting contact an impact, its warm start dropped
                                                 ("restitution_threshold", 0.0, "restitution_threshold must be a finite "
                                                                                "number > 0"),

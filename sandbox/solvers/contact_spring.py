@@ -213,7 +213,8 @@ def row_spring(params: ti.template(), k_true: ti.f32, k_split: ti.f32, load: ti.
     soft step's spring with the preload that carries ``slow_load`` [N] beyond what the spring holds
     within the deflection and the face's rocking stiffness (rocking_share), or under the paper
     formulation a rigid row (gamma 0, no preload, no rocking share) whose bias removes
-    ``baumgarte`` of the depth per step. ``light``: row_omega."""
+    ``baumgarte`` of the depth per step. ``light``: row_omega, and the spring takes the light rows'
+    damping ratio (Settings.light_damping_ratio)."""
     rate = params[BAUMGARTE_RATE]
     gamma = 0.0
     preload = 0.0

@@ -9,7 +9,8 @@ So the lighter body of a touching pair of dynamic bodies whose masses differ
 with the heavy body, the ground, its neighbours) is swept ``Settings.ratio_sweeps`` more times
 per substep after the biased sweep, and under mass splitting and Jacobi its rows take a
 stiffer stability limit, that of the sweeps they get (contact_spring.light_sweeps,
-SolverInfo.stiffens_light_rows).
+SolverInfo.stiffens_light_rows); under all three they take their own damping ratio
+(Settings.light_damping_ratio).
 The extra sweeps visit listed blocks and bodies only, so on the CPU a scene without such a pair
 pays nothing and a pile with one small box under a big one pays for that box's blocks; a GPU's
 per-substep launch runs their unrolled loops empty (substep_loops.py: five tasks a substep),

@@ -202,7 +202,7 @@ def respond_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), sc
     k = sa * rows.k_a[q] + sb * rows.k_b[q]
     k_true = rows.k_a[q][0] + rows.k_b[q][0]
     load, slow_load = supported_load(rows.params, c, bodies, q)
-    light = light_pair(scale, a, b)  # a light body's row: its extra sweeps' limit (light_bodies.py)
+    light = light_pair(scale, a, b)  # a light body's row: its extra sweeps' limit and damping (light_bodies.py)
     rate, gamma, preload, rocking = row_spring(rows.params, k_true, k[0], load, slow_load, c.size[q], light)
     rows.rate[q] = rate
     rows.gamma[q] = gamma
