@@ -4,7 +4,7 @@ rows need more damping (docs/method-notes.md, "A struck column at 8 iterations")
 Boxes of 1, 10, 100 and 1000 kg stand on the ground, one normal row per contact (the engine's four
 points of a face lumped into one). Each substep: gravity, the warm start, S_b + ``--extra`` biased
 Jacobi sweeps dividing by the split response K~ = sum n_b / m_b, the position update, S_b rigid
-relax sweeps (S_b = ceil(8 / iterations), at least 1: Settings.step_sweeps). A row's spring is
+relax sweeps (S_b and the settings the shipped ones: formulation.sweep_plan, Settings). A row's spring is
 the engine's (contact_spring.row_omega): 30 Hz or stiffer to hold the load above it within the
 deflection, capped at kappa sqrt(S K / K~) / h with S = 2 S_b + extra (contact_spring.light_sweeps);
 it is preloaded with that load beyond what its spring holds at the deflection, and below its preload
@@ -20,26 +20,31 @@ deepest penetration after the kick, and the spectral radius of the substep map o
 """
 
 import argparse
+import sys
+from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from sandbox import Settings  # noqa: E402
+from sandbox.formulation import SOFT_STEP, sweep_plan  # noqa: E402
+from sandbox.solvers.contact_spring import light_sweeps  # noqa: E402
+
+SETTINGS = Settings()
 MASSES = np.array([1.0, 10.0, 100.0, 1000.0])
 G = 9.81
 DT = 1.0 / 60.0
-SLOP = 0.0005
-DEFLECTION = 0.002 * 0.866  # contact_deflection x a unit box's bounding radius [m]
-MAX_PUSH = 3.0
-HERTZ = 30.0
-STEP_SWEEPS = 8
+DEFLECTION = SETTINGS.contact_deflection * 0.866  # x a unit box's bounding radius [m]
 
 
-def sweeps_each(iterations):
-    """Biased (and relax) sweeps of a substep besides the extra ones (formulation.sweep_plan)."""
-    return max(1, -(-STEP_SWEEPS // iterations))
+def sweeps(iterations, extra):
+    """(biased and relax sweeps of a substep besides the extra ones, S of the light rows' limit)."""
+    plan = sweep_plan(SOFT_STEP, iterations, SETTINGS.sweeps, extra, SETTINGS.step_sweeps)
+    return plan.biased, light_sweeps(plan.biased, plan.ratio, True)
 
 
 def _column(zeta, iterations, extra, kappa):
-    """(J, inverse masses, K~, bias rate, gamma, preload, h) of the column's rows."""
+    """(J, inverse masses, K~, bias rate, gamma, preload, h, sweeps of each kind) of the column's rows."""
     n = len(MASSES)
     jac = np.eye(n) - np.eye(n, k=-1)  # row i: box i's velocity minus the one below it
     inv = 1.0 / MASSES
@@ -48,27 +53,29 @@ def _column(zeta, iterations, extra, kappa):
     k_split = np.abs(jac) @ (n_b * inv)
     h = DT / iterations
     weight_above = G * np.cumsum(MASSES[::-1])[::-1]
-    wanted = np.maximum(2.0 * np.pi * min(HERTZ, 0.25 / h), np.sqrt(weight_above * k_true / DEFLECTION))
-    cap = kappa * np.sqrt((2 * sweeps_each(iterations) + extra) * k_true / k_split) / h
+    wanted = np.maximum(2.0 * np.pi * min(SETTINGS.contact_hertz, 0.25 / h),
+                        np.sqrt(weight_above * k_true / DEFLECTION))
+    each, limit_sweeps = sweeps(iterations, extra)
+    cap = kappa * np.sqrt(limit_sweeps * k_true / k_split) / h
     omega = np.minimum(wanted, cap)
     rate = omega / (2.0 * zeta + h * omega)
     gamma = k_true / (h * omega * (2.0 * zeta + h * omega))
     preload = np.maximum(weight_above - omega ** 2 * DEFLECTION / k_true, 0.0) * h
-    return jac, inv, k_split, rate, gamma, preload, h
+    return jac, inv, k_split, rate, gamma, preload, h, each
 
 
-def struck(zeta, iterations, extra=6, kappa=0.6, kick=300.0, settle=600, steps=600, offset=False):
+def struck(zeta, iterations, extra=SETTINGS.ratio_sweeps, kappa=SETTINGS.contact_stiffness_limit, kick=300.0,
+           settle=600, steps=600, offset=False):
     """(mean KE of the last second [J], deepest penetration after the kick [m])."""
-    jac, inv, k_split, rate, gamma, preload, h = _column(zeta, iterations, extra, kappa)
-    x = np.arange(len(MASSES)) + 0.5
+    jac, inv, k_split, rate, gamma, preload, h, each = _column(zeta, iterations, extra, kappa)
+    rest = np.arange(len(MASSES)) + 0.5  # unit boxes just touching: separations are J (x - rest)
+    x = rest.copy()
     v = np.zeros_like(x)
     lam = np.zeros_like(x)
-    rest = np.arange(len(MASSES)) * 1.0 + 0.5  # separations are J x - J rest
 
     def push(dl):
         return inv * (jac.T @ dl)
 
-    each = sweeps_each(iterations)
     kinetic, depth = [], 0.0
     for step in range(settle + steps):
         if step == settle:
@@ -76,7 +83,8 @@ def struck(zeta, iterations, extra=6, kappa=0.6, kick=300.0, settle=600, steps=6
         for _ in range(iterations):
             v = v - G * h + push(lam)
             s = jac @ (x - rest)
-            target = np.where(s > 0.0, s / h, np.maximum(rate * np.minimum(s + SLOP, 0.0), -MAX_PUSH))
+            target = np.where(s > 0.0, s / h, np.maximum(rate * np.minimum(s + SETTINGS.slop, 0.0),
+                                                          -SETTINGS.max_push_speed))
             for _ in range(each + extra):
                 w = jac @ v
                 rigid = lam - (w + target) / k_split
@@ -97,12 +105,10 @@ def struck(zeta, iterations, extra=6, kappa=0.6, kick=300.0, settle=600, steps=6
     return float(np.mean(kinetic[-60:])), depth
 
 
-def soft_regime_radius(zeta, iterations, extra=6, kappa=0.6):
+def soft_regime_radius(zeta, iterations, extra=SETTINGS.ratio_sweeps, kappa=SETTINGS.contact_stiffness_limit):
     """Spectral radius of one substep's map (x, v, lambda) -> (x, v, lambda) with every row soft."""
-    jac, inv, k_split, rate, gamma, _, h = _column(zeta, iterations, extra, kappa)
+    jac, inv, k_split, rate, gamma, _, h, each = _column(zeta, iterations, extra, kappa)
     n = len(MASSES)
-
-    each = sweeps_each(iterations)
 
     def substep(z):
         x, v, lam = z[:n], z[n:2 * n], z[2 * n:]
@@ -125,7 +131,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--zetas", default="10,20,22,25,30,40")
     parser.add_argument("--iterations", default="4,8,15")
-    parser.add_argument("--extra", type=int, default=6, help="extra biased sweeps (Settings.ratio_sweeps)")
+    parser.add_argument("--extra", type=int, default=SETTINGS.ratio_sweeps,
+                        help="extra biased sweeps (Settings.ratio_sweeps)")
     parser.add_argument("--offset", action="store_true", help="preloaded rows stay soft below their preload")
     args = parser.parse_args()
     print(f"{'zeta':>5} {'its':>4} {'KE last s [J]':>14} {'max pen [mm]':>13} {'soft-regime radius':>19}")
