@@ -3,7 +3,7 @@ each holds, and whether Rapier's holds by its contact forces (docs/method-notes.
 beside Rapier, re-examined").
 
     python benchmarks/rapier_column.py thresholds [--boxes 5,20] [--iterations 4] [--seconds 30]  # ~2 min
-    python benchmarks/rapier_column.py torque [--iterations 4]                                    # ~30 s
+    python benchmarks/rapier_column.py torque [--iterations 4] [--shipped]                        # ~30 s
     python benchmarks/rapier_column.py balance [--columns 3:4,5:4.5,20:15]                        # ~30 s
 
 Every run compares the contact spring and nothing else: ours is serial PGS with the stability limit,
@@ -21,7 +21,9 @@ last 10 s of the run [mm]; "fell" past 0.5 m.
 ``torque``: three boxes, a torque of 2000 N m about y on the middle one for 5 s: the middle box's turn
 relative to the bottom one each second against the static answer T / k_r (k_r = m omega^2 / 8, the
 four corner springs of a 1000 kg pair about the face's middle), ours with one and with eight sweeps of
-each kind per substep, and Rapier.
+each kind per substep, and Rapier. ``--shipped``: also ours with its shipped settings (load-stiffened,
+preloaded springs: no longer the same spring, so only whether the turn settles compares), serial PGS
+and mass splitting at 4, 8 and 15 iterations, for 10 s.
 
 ``balance``: Rapier alone. A leaning column after 30 s, averaged over 60 steps: the moment about y of
 the weights above the lowest box-box joint against the moment of that joint's normal impulses (as
@@ -151,17 +153,17 @@ def run_torque(args) -> None:
     print(f"three 1000 kg boxes, {hertz:g} Hz springs, {torque:g} N m about y on the middle box from t = 0: its turn "
           f"relative to the bottom box [urad] each second; the static answer is {1e6 * static:.0f} urad")
 
-    def report(name, step, turns):
+    def report(name, step, turns, seconds=5):
         for k in range(300):
             step(0.0)
         t0 = turns()
         row = []
-        for k in range(300):
+        for k in range(60 * seconds):
             step(torque)
             if (k + 1) % 60 == 0:
                 t = turns() - t0
                 row.append(f"{1e6 * (t[1] - t[0]):8.0f}")
-        print(f"{name:28s}" + "".join(row), flush=True)
+        print(f"{name:34s}" + "".join(row), flush=True)
 
     for sweeps in (1, 8):
         world = our_world(scene, args.iterations, sweeps)
@@ -178,6 +180,23 @@ def run_torque(args) -> None:
             report(f"ours, {sweeps} + {sweeps} sweeps", step, turns)
         finally:
             world.close()
+    if args.shipped:
+        for solver in ("pgs", "mass-splitting"):
+            for iterations in (4, 8, 15):
+                world = World(scene, solver=solver, iterations=iterations)
+                try:
+                    def step(t, world=world):
+                        if t:
+                            spin = world.state(("angular_velocity",))["angular_velocity"][1]
+                            world.set_velocity([1], angular=list(spin + np.array([0.0, t * dt / inertia, 0.0])))
+                        world.step(1)
+
+                    def turns(world=world):
+                        return np.array([turn_y(q) for q in world.state(("orientation",))["orientation"]])
+
+                    report(f"ours shipped, {solver} @{iterations}", step, turns, seconds=10)
+                finally:
+                    world.close()
     rapier = rapier_world(scene, args.iterations, hertz)
     bodies = rapier.world.rigid_bodies
     try:
@@ -263,6 +282,7 @@ def main(argv=None) -> int:
     t.add_argument("--seconds", type=float, default=30.0)
     q = sub.add_parser("torque", help="three boxes under a torque: the static answer reached or not")
     q.add_argument("--iterations", type=int, default=4)
+    q.add_argument("--shipped", action="store_true", help="also ours with its shipped settings, 4, 8 and 15 iterations")
     b = sub.add_parser("balance", help="Rapier's leaning column: its contact moments against the weights'")
     b.add_argument("--columns", default="3:4,5:4.5,20:15", help="boxes:hertz, comma-separated")
     args = p.parse_args(argv)
