@@ -2,7 +2,7 @@
 each holds, and whether Rapier's holds by its contact forces (docs/method-notes.md, "The column
 beside Rapier, re-examined").
 
-    python benchmarks/rapier_column.py thresholds [--boxes 5,20] [--iterations 4] [--seconds 30]  # ~2 min
+    python benchmarks/rapier_column.py thresholds [--boxes 5,20] [--iterations 4] [--seconds 30]  # ~1 min
     python benchmarks/rapier_column.py torque [--iterations 4] [--shipped]                        # ~30 s
     python benchmarks/rapier_column.py balance [--columns 3:4,5:4.5,20:15]                        # ~30 s
 
