@@ -165,38 +165,29 @@ def run_torque(args) -> None:
                 row.append(f"{1e6 * (t[1] - t[0]):8.0f}")
         print(f"{name:34s}" + "".join(row), flush=True)
 
-    for sweeps in (1, 8):
-        world = our_world(scene, args.iterations, sweeps)
+    def report_ours(name, world, seconds=5):
+        """``report`` on one of our worlds: the torque as a change of the middle box's spin each step."""
+        def step(t):
+            if t:
+                spin = world.state(("angular_velocity",))["angular_velocity"][1]
+                world.set_velocity([1], angular=list(spin + np.array([0.0, t * dt / inertia, 0.0])))
+            world.step(1)
+
+        def turns():
+            return np.array([turn_y(q) for q in world.state(("orientation",))["orientation"]])
+
         try:
-            def step(t, world=world):
-                if t:
-                    spin = world.state(("angular_velocity",))["angular_velocity"][1]
-                    world.set_velocity([1], angular=list(spin + np.array([0.0, t * dt / inertia, 0.0])))
-                world.step(1)
-
-            def turns(world=world):
-                return np.array([turn_y(q) for q in world.state(("orientation",))["orientation"]])
-
-            report(f"ours, {sweeps} + {sweeps} sweeps", step, turns)
+            report(name, step, turns, seconds)
         finally:
             world.close()
+
+    for sweeps in (1, 8):
+        report_ours(f"ours, {sweeps} + {sweeps} sweeps", our_world(scene, args.iterations, sweeps))
     if args.shipped:
         for solver in ("pgs", "mass-splitting"):
             for iterations in (4, 8, 15):
-                world = World(scene, solver=solver, iterations=iterations)
-                try:
-                    def step(t, world=world):
-                        if t:
-                            spin = world.state(("angular_velocity",))["angular_velocity"][1]
-                            world.set_velocity([1], angular=list(spin + np.array([0.0, t * dt / inertia, 0.0])))
-                        world.step(1)
-
-                    def turns(world=world):
-                        return np.array([turn_y(q) for q in world.state(("orientation",))["orientation"]])
-
-                    report(f"ours shipped, {solver} @{iterations}", step, turns, seconds=10)
-                finally:
-                    world.close()
+                report_ours(f"ours shipped, {solver} @{iterations}", World(scene, solver=solver, iterations=iterations),
+                            seconds=10)
     rapier = rapier_world(scene, args.iterations, hertz)
     bodies = rapier.world.rigid_bodies
     try:
@@ -219,20 +210,11 @@ def run_torque(args) -> None:
 
 def joint_records(world) -> dict:
     """Per joint height (rounded to 0.1 m): (midpoint, anchor on body 1, anchor on body 2, force on body 2 [N])."""
-    colliders = world.world.colliders
     out = {}
-    for pair in world.world.narrow_phase.contact_pairs():
-        pose1 = colliders.get(pair.collider1).position
-        pose2 = colliders.get(pair.collider2).position
-        for manifold in pair.manifolds:
-            n = np.asarray(pose1.rotation.transform_vector(manifold.local_n1).to_tuple())
-            for point in manifold.points:
-                if point.impulse == 0.0:
-                    continue
-                p1 = np.asarray(pose1.transform_point(point.local_p1).to_tuple())
-                p2 = np.asarray(pose2.transform_point(point.local_p2).to_tuple())
-                force = point.impulse / world.world.integration_parameters.dt * n
-                out.setdefault(round(0.5 * (p1[2] + p2[2]), 1), []).append((0.5 * (p1 + p2), p1, p2, force))
+    dt = world.world.integration_parameters.dt
+    for n, p1, p2, impulse in world.contact_points():
+        if impulse != 0.0:
+            out.setdefault(round(0.5 * (p1[2] + p2[2]), 1), []).append((0.5 * (p1 + p2), p1, p2, impulse / dt * n))
     return out
 
 

@@ -204,8 +204,10 @@ class RapierWorld:
         bodies = self.world.rigid_bodies
         return float(sum(bodies[h].kinetic_energy() for h in self.handles))
 
-    def metrics(self) -> dict:
-        depths = []
+    def contact_points(self):
+        """Each contact point now: (normal from collider 1's face, the point on collider 1, the point on
+        collider 2 (world) [m], its impulse over the last step [N s]). Depths are recomputed from the
+        points: the stored distance goes stale when Rapier recycles a contact."""
         colliders = self.world.colliders
         for pair in self.world.narrow_phase.contact_pairs():
             pose1 = colliders.get(pair.collider1).position
@@ -215,8 +217,10 @@ class RapierWorld:
                 for point in m.points:
                     p1 = np.asarray(pose1.transform_point(point.local_p1).to_tuple())
                     p2 = np.asarray(pose2.transform_point(point.local_p2).to_tuple())
-                    depths.append(max(0.0, -float(np.dot(p2 - p1, n))))
-        pen = np.asarray(depths)
+                    yield n, p1, p2, float(point.impulse)
+
+    def metrics(self) -> dict:
+        pen = np.asarray([max(0.0, -float(np.dot(p2 - p1, n))) for n, p1, p2, _ in self.contact_points()])
         return {"kinetic_energy": self.kinetic_energy(), "contacts": len(pen),
                 "max_penetration": float(pen.max()) if len(pen) else 0.0,
                 "mean_penetration": float(pen.mean()) if len(pen) else 0.0}
