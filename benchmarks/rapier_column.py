@@ -53,8 +53,7 @@ from stiffness_limit import critical_omega  # noqa: E402
 SPRING_ONLY = dict(contact_stiffness_limit=0.0, contact_rocking_stiffness=0.0, contact_preload=0.0,
                    contact_deflection=0.0, step_sweeps=0)
 FELL = 0.5  # [m] sideways: a column that far out has fallen
-ZETA = 10.0
-GRAVITY = 9.81
+ZETA = Settings().contact_damping_ratio  # Rapier's springs take ours
 
 
 def our_world(scene: Scene, iterations: int, sweeps: int = 1) -> World:
@@ -145,13 +144,14 @@ def turn_y(quaternion_wxyz) -> float:
 
 
 def run_torque(args) -> None:
-    hertz, torque, mass = 15.0, 2000.0, 1000.0
+    hertz, torque = 15.0, 2000.0
     scene, _ = column_scene(3, hertz, nudge=False)
     dt = scene.world.dt
+    mass = scene.bodies[1].mass
     inertia = mass / 6.0  # a unit cube about an axis through its centre
     static = torque / (mass * (2.0 * math.pi * hertz) ** 2 / 8.0)
-    print(f"three 1000 kg boxes, {hertz:g} Hz springs, {torque:g} N m about y on the middle box from t = 0: its turn "
-          f"relative to the bottom box [urad] each second; the static answer is {1e6 * static:.0f} urad")
+    print(f"three {mass:g} kg boxes, {hertz:g} Hz springs, {torque:g} N m about y on the middle box from t = 0: "
+          f"its turn relative to the bottom box [urad] each second; the static answer is {1e6 * static:.0f} urad")
 
     def report(name, step, turns, seconds=5):
         for k in range(300):
@@ -240,7 +240,8 @@ def run_balance(args) -> None:
             for k in range(60):
                 world.step()
                 x = np.array([world.position(i) for i in range(boxes)])
-                weights = float(np.sum(x[1:, 0]) * scene.bodies[0].mass * GRAVITY)  # M_y of -W z at x: x W
+                weight = scene.bodies[0].mass * -scene.world.gravity[2]  # [N] of each box
+                weights = float(np.sum(x[1:, 0]) * weight)  # M_y of -W z at x: x W
                 joints = joint_records(world)
                 lowest = min(z for z in joints if z > 0.5)
                 mid = np.array([j[0] for j in joints[lowest]])

@@ -9,6 +9,7 @@ where its scene comes from.
 from __future__ import annotations
 
 import gzip
+import importlib.util
 import json
 import os
 from pathlib import Path
@@ -33,6 +34,16 @@ scenes and fields tests/scene compares with: stack20, pyramid20, pile1000 and
 massratio1000_heavy_on_light whole, heightfield_pile's body positions and terrain vertices and
 faces. Kept in the repository so the comparisons run wherever the suite does, CI's clean clone
 included, instead of skipping where the shared folder is absent."""
+
+
+def load_benchmark(name: str):
+    """The script ``benchmarks/<name>.py`` as a module (benchmarks/ is not a package), for the tests
+    that keep a model's findings true."""
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def anchor_scene(name: str) -> dict:

@@ -1,18 +1,13 @@
 """The column-buckling model of benchmarks/stiffness_limit.py (docs/method-notes.md, "Limits"),
 checked where it has a closed form, so its prediction for the 20-box column can be trusted."""
 
-import importlib.util
 import math
-from pathlib import Path
 
 import pytest
 
-_PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "stiffness_limit.py"
-_spec = importlib.util.spec_from_file_location("stiffness_limit", _PATH)
-stiffness_limit = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(stiffness_limit)
+from tests.helpers import G, load_benchmark
 
-G = 9.81
+stiffness_limit = load_benchmark("stiffness_limit")
 
 
 @pytest.mark.parametrize("turn_factor", [1.0, 2.0])

@@ -1,13 +1,9 @@
 """The 1-D struck-column model of benchmarks/struck_column_model.py (docs/method-notes.md, "A struck
 column at 8 iterations"): the findings the light rows' damping ratio rests on, kept true."""
 
-import importlib.util
-from pathlib import Path
+from tests.helpers import load_benchmark
 
-_PATH = Path(__file__).resolve().parents[1] / "benchmarks" / "struck_column_model.py"
-_spec = importlib.util.spec_from_file_location("struck_column_model", _PATH)
-model = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(model)
+model = load_benchmark("struck_column_model")
 
 
 def test_the_soft_regime_is_linearly_stable_whatever_the_damping():
