@@ -87,7 +87,10 @@ class World:
         self.sleeping = False  # resting islands sleep (sleep.py); switched on below, once the solver is set
         opts = dict(scene.solver.options)
         opts.update(solver_options)
-        self.set_solver(solver or scene.solver.name, iterations=iterations or scene.solver.iterations, **opts)
+        # None means "the scene's"; anything else is checked (0 iterations or an empty name is an error,
+        # not the scene's default)
+        self.set_solver(scene.solver.name if solver is None else solver,
+                        iterations=scene.solver.iterations if iterations is None else iterations, **opts)
         self._set_sleeping("sleeping" in effects)
         self.initial_solver = (self.solver, self.iterations, dict(self.solver_options))
         """The solver the world started with: a recording begun later re-simulates from step 0."""

@@ -63,6 +63,14 @@ def test_bad_solver_and_step_arguments_are_refused(world, call):
         call(world)
 
 
+@pytest.mark.parametrize("asked, match", [({"iterations": 0}, "iterations must be an integer >= 1, got 0"),
+                                          ({"solver": ""}, "solver")])
+def test_a_world_refuses_zero_iterations_and_an_empty_solver_name(asked, match):
+    """0 and "" are answers, not "the scene's": they once fell back to the scene's solver silently."""
+    with pytest.raises(SandboxError, match=match):
+        World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch=TEST_ARCH, **asked)
+
+
 def test_world_needs_a_scene():
     with pytest.raises(SandboxError, match="needs a Scene"):
         World({"body": []}, arch=TEST_ARCH)
