@@ -10,7 +10,34 @@ import sys
 import time
 from pathlib import Path
 
+from .errors import SandboxError
+
 ARCHES = ("cpu", "cuda", "auto")
+
+
+def whole_number(minimum: int):
+    """An argparse type: a whole number of at least ``minimum`` (refused before Taichi starts)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"must be a whole number >= {minimum}, got {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be a whole number >= {minimum}, got {value}")
+        return value
+
+    return parse
+
+
+def check_writable(path: str, what: str) -> None:
+    """Refuse an output file whose folder is missing or is not a folder, before any simulating: a run
+    that ends by failing to write what it was asked for has lost its time."""
+    folder = Path(path).resolve().parent
+    if not folder.is_dir():
+        raise SandboxError(f"{what} {path}: cannot write it (no folder {folder})")
+    if Path(path).is_dir():
+        raise SandboxError(f"{what} {path}: cannot write it (it is a folder)")
 
 
 def cmd_run(args) -> int:
@@ -21,6 +48,9 @@ def cmd_run(args) -> int:
 
     path = resolve_scene(args.scene)
     scene = Scene.load(path)  # a bad scene is refused before Taichi starts (and prints its banner)
+    for output, what in ((args.report, "report"), (args.record, "recording")):
+        if output:
+            check_writable(output, what)
     from . import World
     for warning in scene.warnings:
         print(f"warning    {warning}")
@@ -87,7 +117,10 @@ def cmd_run(args) -> int:
     print("ms/step    " + "  ".join(f"{k} {timing[k]:.2f}" for k in ("collide", "solve", "integrate", "total"))
           + f"   ->  {report['steps_per_second']:.1f} steps/s (wall, incl. Python)")
     if args.report:
-        Path(args.report).write_text(json.dumps(report, indent=1))
+        try:
+            Path(args.report).write_text(json.dumps(report, indent=1))
+        except OSError as exc:
+            raise SandboxError(f"report {args.report}: cannot write it ({exc.strerror})") from None
         print(f"report     {args.report}")
     for failure in world.fracture_failures:
         print(f"fracture   {failure}")
@@ -128,8 +161,6 @@ def cmd_bench(args) -> int:
         try:
             return [int(x) for x in text.split(",") if x.strip()] if text else None
         except ValueError:
-            from .errors import SandboxError
-
             raise SandboxError(f"{what} must be comma-separated integers, got {text!r}") from None
 
     run(scenes=args.scenes or None, solvers=args.solvers.split(",") if args.solvers else None,
@@ -166,7 +197,6 @@ def _add_run_flags(parser, arch_default: str) -> None:
 
 
 def main(argv=None) -> int:
-    from .errors import SandboxError
     from .settings import FORMULATIONS
     from .solvers import SOLVERS
 
@@ -175,8 +205,8 @@ def main(argv=None) -> int:
     run = sub.add_parser("run", help="simulate a scene headless and summarise it")
     run.add_argument("scene", help="a scene file, or the name of a shipped scene (see `sandbox scenes`)")
     run.add_argument("--solver", choices=list(SOLVERS), default=None, help="default: the scene's")
-    run.add_argument("--iterations", type=int, default=None, help="default: the scene's")
-    run.add_argument("--steps", type=int, default=600)
+    run.add_argument("--iterations", type=whole_number(1), default=None, help="default: the scene's")
+    run.add_argument("--steps", type=whole_number(1), default=600)
     run.add_argument("--formulation", choices=list(FORMULATIONS), default=None,
                      help="soft-step (Box2D v3, the default) or paper (Tonge et al.: one step, Baumgarte); "
                      "default: the scene's")
@@ -200,12 +230,12 @@ def main(argv=None) -> int:
     _add_run_flags(bench, arch_default="cpu")
     bench.add_argument("--out", default="out/bench", help="output directory (default: out/bench)")
     bench.add_argument("--quick", action="store_true", help="small smoke run of every output (budget: 2 min on 2 cores)")
-    bench.add_argument("--settle", type=int, help="frames before measuring (default 120; --quick 60)")
-    bench.add_argument("--window", type=int, help="frames of the error window (default 60; --quick 30)")
-    bench.add_argument("--steps", type=int, help="timed steps, once per-stage and once whole (default 60; --quick 30)")
+    bench.add_argument("--settle", type=whole_number(0), help="frames before measuring (default 120; --quick 60)")
+    bench.add_argument("--window", type=whole_number(1), help="frames of the error window (default 60; --quick 30)")
+    bench.add_argument("--steps", type=whole_number(1), help="timed steps, once per-stage and once whole (default 60; --quick 30)")
     bench.add_argument("--scaling-sizes", help="grid pile sizes in bodies (default: 100,300,1000,2000,5000; "
                        "--quick: 32,100)")
-    bench.add_argument("--scaling-iterations", type=int, help="iterations in the scaling runs (default 15; --quick 4)")
+    bench.add_argument("--scaling-iterations", type=whole_number(1), help="iterations in the scaling runs (default 15; --quick 4)")
     bench.add_argument("--no-scaling", action="store_true", help="skip the scaling piles")
     bench.add_argument("--no-peers", action="store_true", help="skip pybullet even when importable")
     bench.set_defaults(func=cmd_bench)

@@ -98,6 +98,8 @@ class Recorder:
         self._frames.append(_frame(self.world))
 
     def save(self, path) -> int:
+        """Write the recording to ``path``; its size in bytes. A path that cannot be written raises
+        SandboxError and keeps the frames, so a second ``save`` elsewhere loses nothing."""
         header = {
             "version": VERSION,
             "scene_path": str(self.scene_path),
@@ -125,7 +127,10 @@ class Recorder:
         chunks.append(payload.flush())
         head = json.dumps(header).encode("utf-8")
         blob = MAGIC + struct.pack("<HI", VERSION, len(head)) + head + b"".join(chunks)
-        Path(path).write_bytes(blob)
+        try:
+            Path(path).write_bytes(blob)
+        except OSError as exc:
+            raise SandboxError(f"recording {path}: cannot write it ({exc.strerror})") from None
         return len(blob)
 
 

@@ -70,6 +70,18 @@ def test_bad_recordings_get_clear_errors(tmp_path):
         load(tmp_path / "missing.sbrec")
 
 
+def test_a_recording_that_cannot_be_written_keeps_its_frames(tmp_path):
+    world = World(Scene.load(SCENE_PATH), arch=TEST_ARCH)
+    rec = Recorder(world, SCENE_PATH)
+    for _ in range(3):
+        world.step(1)
+        rec.capture()
+    with pytest.raises(SandboxError, match="cannot write it"):
+        rec.save(tmp_path / "no such folder" / "drop.sbrec")
+    rec.save(tmp_path / "drop.sbrec")  # the same recorder, saved again: nothing was lost
+    assert len(load(tmp_path / "drop.sbrec")[1]) == 4
+
+
 def test_recording_started_mid_run_replays_through_the_logged_edits(tmp_path):
     """The web sandbox's Record button: frames start late, edits happen before and during."""
     from sandbox.scene.spec import EventSpec

@@ -472,3 +472,20 @@ def test_the_cli_refuses_a_bad_scene_in_one_line_before_starting_taichi(tmp_path
     assert run.returncode == 2
     lines = (run.stdout + run.stderr).strip().splitlines()
     assert len(lines) == 1 and "entry world.bogus: unknown key 'bogus'" in lines[0], lines
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--steps", "0"], "argument --steps: must be a whole number >= 1, got 0"),
+    (["--iterations", "-2"], "argument --iterations: must be a whole number >= 1, got -2"),
+    (["--record", "{tmp}/missing/run.sbrec"], "recording {tmp}/missing/run.sbrec: cannot write it (no folder"),
+    (["--report", "{tmp}"], "report {tmp}: cannot write it (it is a folder)"),
+])
+def test_the_cli_refuses_bad_run_arguments_before_starting_taichi(tmp_path, extra, message):
+    """Counts below 1 and output files that cannot be written are refused before the run, not after it
+    (``--record`` to a missing folder once simulated every step, then died with a raw traceback)."""
+    extra = [arg.format(tmp=tmp_path) for arg in extra]
+    run = subprocess.run([sys.executable, "-m", "sandbox.cli", "run", "stack_20", "--steps", "1", *extra],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 2
+    assert message.format(tmp=tmp_path) in run.stderr, run.stderr
+    assert "Taichi" not in run.stdout + run.stderr and "Traceback" not in run.stderr
