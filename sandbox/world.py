@@ -42,6 +42,9 @@ class World:
         ``formulation``: "soft-step" or "paper" (formulation.py), over the scene's and ``settings``'."""
         if not isinstance(scene, Scene):
             raise SandboxError(f"World needs a Scene (Scene.load(path) or Scene.from_dict(d)), got {type(scene).__name__}")
+        if settings is not None and not isinstance(settings, Settings):
+            raise SandboxError(f"settings must be a sandbox.Settings (e.g. Settings(sweeps=2), or "
+                               f"Settings().replace(**changes)), got {type(settings).__name__}")
         self.arch = backend.init(arch)
         self.scene = scene
         settings_given = settings is not None

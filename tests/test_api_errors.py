@@ -76,6 +76,12 @@ def test_world_needs_a_scene():
         World({"body": []}, arch=TEST_ARCH)
 
 
+def test_world_settings_must_be_settings():
+    """A dict of settings once failed inside the world's build with a raw AttributeError."""
+    with pytest.raises(SandboxError, match=r"settings must be a sandbox.Settings .* got dict"):
+        World(Scene.from_dict(scene_dict([box_body([0.0, 0.0, 0.5])])), arch=TEST_ARCH, settings={"sweeps": 2})
+
+
 def test_unknown_settings_are_refused():
     from sandbox import Settings
 
