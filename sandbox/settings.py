@@ -378,7 +378,13 @@ class Settings:
 
                 limit = "a finite number >= 0" if top == math.inf else f"in [0, {top:.5g}]"
                 raise SandboxError(f"{name} must be {limit} (0 turns manifold reuse off), got {value!r}")
-        for name, low, high, closed in (("contact_stiffness_limit", 0.0, math.inf, True),
+        for name, low, high, closed in (("contact_margin", 0.0, math.inf, True),
+                                        ("slop", 0.0, math.inf, True),
+                                        ("contact_hertz", 0.0, math.inf, False),
+                                        ("match_distance", 0.0, math.inf, True),
+                                        ("jacobi_relaxation", 0.0, math.inf, False),
+                                        ("fracture_min_piece_size", 0.0, math.inf, False),
+                                        ("contact_stiffness_limit", 0.0, math.inf, True),
                                         ("contact_damping_ratio", 0.0, math.inf, True),
                                         ("light_damping_ratio", 0.0, math.inf, True),
                                         ("contact_rocking_stiffness", 0.0, math.inf, True),
@@ -411,11 +417,27 @@ class Settings:
             from .errors import SandboxError
 
             raise SandboxError(f"step_sweeps must be a whole number in [0, {MAX_STEP_SWEEPS}], got {floor!r}")
-        share = self.contact_preload
-        if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0:
+        for name in ("contact_preload", "warm_start"):
+            share = getattr(self, name)
+            if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0:
+                from .errors import SandboxError
+
+                raise SandboxError(f"{name} must be a number in [0, 1], got {share!r}")
+        push = self.max_push_speed  # inf: no cap
+        if isinstance(push, bool) or not isinstance(push, (int, float)) or not push > 0.0:
             from .errors import SandboxError
 
-            raise SandboxError(f"contact_preload must be a number in [0, 1], got {share!r}")
+            raise SandboxError(f"max_push_speed must be a number > 0 (inf: no cap), got {push!r}")
+        for name in ("sweeps", "max_bodies"):
+            count = getattr(self, name)
+            if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+                from .errors import SandboxError
+
+                raise SandboxError(f"{name} must be a whole number >= 1, got {count!r}")
+        if not isinstance(self.speculative_contacts, bool):
+            from .errors import SandboxError
+
+            raise SandboxError(f"speculative_contacts must be true or false, got {self.speculative_contacts!r}")
 
     def manifold_reuse_bounds(self) -> tuple[float, float]:
         """(squared distance, sine of the half angle) the narrowphase compares against;

@@ -91,7 +91,22 @@ def test_unknown_settings_are_refused():
         Settings().replace(iteration_lunch="one")
 
 
-@pytest.mark.parametrize("name, value, match", [("contact_preload", 1.5, r"contact_preload must be a number in \[0, 1\]"),
+@pytest.mark.parametrize("name, value, match", [
+    # checked since session 49 (a NaN spring or 0 sweeps were taken as given before)
+    ("contact_hertz", float("nan"), "contact_hertz must be a finite number > 0"),
+    ("contact_hertz", -30.0, "contact_hertz must be a finite number > 0"),
+    ("slop", -1e-3, "slop must be a finite number >= 0"),
+    ("contact_margin", float("inf"), "contact_margin must be a finite number >= 0"),
+    ("match_distance", -1.0, "match_distance must be"),
+    ("jacobi_relaxation", 0.0, "jacobi_relaxation must be a finite number > 0"),
+    ("fracture_min_piece_size", 0.0, "fracture_min_piece_size must be"),
+    ("warm_start", 2.0, r"warm_start must be a number in \[0, 1\]"),
+    ("max_push_speed", float("nan"), r"max_push_speed must be a number > 0 \(inf: no cap\)"),
+    ("sweeps", 0, "sweeps must be a whole number >= 1, got 0"),
+    ("sweeps", 2.5, "sweeps must be a whole number >= 1"),
+    ("max_bodies", 0, "max_bodies must be a whole number >= 1"),
+    ("speculative_contacts", 1, "speculative_contacts must be true or false"),
+    ("contact_preload", 1.5, r"contact_preload must be a number in \[0, 1\]"),
                                                 ("contact_preload", -0.1, r"in \[0, 1\], got -0.1"),
                                                 ("contact_preload", float("nan"), r"contact_preload must be"),
                                                 ("contact_preload_lag", 0.0, "contact_preload_lag must be a finite "
