@@ -10,16 +10,13 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+from ..errors import SandboxError
+from .domains import FORMULATIONS, ITERATION_LAUNCHES, MAX_RATIO_SWEEPS, MAX_STEP_SWEEPS, check_settings
 
-ITERATION_LAUNCHES = ("auto", "shared", "one", "per-substep", "per-stage")
-FORMULATIONS = ("soft-step", "paper")
-MAX_RATIO_SWEEPS = 8
-"""The most ``ratio_sweeps`` a world takes: a GPU's per-substep launch unrolls them."""
+__all__ = ["FORMULATIONS", "ITERATION_LAUNCHES", "MAX_RATIO_SWEEPS", "MAX_STEP_SWEEPS", "RENAMED", "Settings"]
+
 RENAMED = {"split_step_sweeps": "step_sweeps"}
 """Former names of settings, read as the new ones (Settings.replace)."""
-MAX_STEP_SWEEPS = 16
-"""The most ``step_sweeps`` a world takes: a GPU's per-substep launch unrolls a substep's
-sweeps of each kind (all of them at 1 iteration)."""
 
 
 @dataclass(frozen=True)
@@ -355,89 +352,7 @@ class Settings:
     arrive, keeping every body's state (each new size class compiles the kernels once)."""
 
     def __post_init__(self):
-        if self.iteration_launch not in ITERATION_LAUNCHES:
-            from .errors import SandboxError
-
-            raise SandboxError(f"unknown iteration_launch {self.iteration_launch!r}; choose one of "
-                               f"{', '.join(ITERATION_LAUNCHES)}")
-        if self.formulation not in FORMULATIONS:
-            from .errors import SandboxError
-
-            raise SandboxError(f"unknown formulation {self.formulation!r}; choose one of {', '.join(FORMULATIONS)}")
-        for name in ("sleep_linear_speed", "sleep_angular_speed", "sleep_time", "speculative_speed"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value)
-                                                                                     and value >= 0.0):
-                from .errors import SandboxError
-
-                raise SandboxError(f"{name} must be a finite number >= 0, got {value!r}")
-        for name, top in (("manifold_reuse_distance", math.inf), ("manifold_reuse_angle", math.pi)):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and 0.0 <= value <= top):
-                from .errors import SandboxError
-
-                limit = "a finite number >= 0" if top == math.inf else f"in [0, {top:.5g}]"
-                raise SandboxError(f"{name} must be {limit} (0 turns manifold reuse off), got {value!r}")
-        for name, low, high, closed in (("contact_margin", 0.0, math.inf, True),
-                                        ("slop", 0.0, math.inf, True),
-                                        ("contact_hertz", 0.0, math.inf, False),
-                                        ("match_distance", 0.0, math.inf, True),
-                                        ("jacobi_relaxation", 0.0, math.inf, False),
-                                        ("fracture_min_piece_size", 0.0, math.inf, False),
-                                        ("contact_stiffness_limit", 0.0, math.inf, True),
-                                        ("contact_damping_ratio", 0.0, math.inf, True),
-                                        ("light_damping_ratio", 0.0, math.inf, True),
-                                        ("contact_rocking_stiffness", 0.0, math.inf, True),
-                                        ("contact_deflection", 0.0, math.inf, True),
-                                        ("contact_load_time", 0.0, math.inf, False),
-                                        ("contact_preload_lag", 0.0, math.inf, False),
-                                        ("split_relaxation", 0.0, 2.0, False),
-                                        ("relax_push_speed", 0.0, math.inf, True),
-                                        ("overlap_push_speed", 0.0, math.inf, False),
-                                        ("baumgarte", 0.0, 1.0, True),
-                                        ("idle_split", 0.0, 1.0, False),
-                                        ("restitution_tolerance", 0.0, math.inf, False),
-                                        ("restitution_threshold", 0.0, math.inf, False),
-                                        ("ratio_mass", 1.0, math.inf, False)):
-            value = getattr(self, name)
-            above = value >= low if closed else value > low
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (math.isfinite(value) and above
-                                                                                       and value < high):
-                from .errors import SandboxError
-
-                span = f"{'>=' if closed else '>'} {low:g}" + (f" and < {high:g}" if high != math.inf else "")
-                raise SandboxError(f"{name} must be a finite number {span}, got {value!r}")
-        sweeps = self.ratio_sweeps
-        if isinstance(sweeps, bool) or not isinstance(sweeps, int) or not 0 <= sweeps <= MAX_RATIO_SWEEPS:
-            from .errors import SandboxError
-
-            raise SandboxError(f"ratio_sweeps must be a whole number in [0, {MAX_RATIO_SWEEPS}], got {sweeps!r}")
-        floor = self.step_sweeps
-        if isinstance(floor, bool) or not isinstance(floor, int) or not 0 <= floor <= MAX_STEP_SWEEPS:
-            from .errors import SandboxError
-
-            raise SandboxError(f"step_sweeps must be a whole number in [0, {MAX_STEP_SWEEPS}], got {floor!r}")
-        for name in ("contact_preload", "warm_start"):
-            share = getattr(self, name)
-            if isinstance(share, bool) or not isinstance(share, (int, float)) or not 0.0 <= share <= 1.0:
-                from .errors import SandboxError
-
-                raise SandboxError(f"{name} must be a number in [0, 1], got {share!r}")
-        push = self.max_push_speed  # inf: no cap
-        if isinstance(push, bool) or not isinstance(push, (int, float)) or not push > 0.0:
-            from .errors import SandboxError
-
-            raise SandboxError(f"max_push_speed must be a number > 0 (inf: no cap), got {push!r}")
-        for name in ("sweeps", "max_bodies"):
-            count = getattr(self, name)
-            if isinstance(count, bool) or not isinstance(count, int) or count < 1:
-                from .errors import SandboxError
-
-                raise SandboxError(f"{name} must be a whole number >= 1, got {count!r}")
-        if not isinstance(self.speculative_contacts, bool):
-            from .errors import SandboxError
-
-            raise SandboxError(f"speculative_contacts must be true or false, got {self.speculative_contacts!r}")
+        check_settings(self)  # domains.DOMAINS: what each setting takes
 
     def manifold_reuse_bounds(self) -> tuple[float, float]:
         """(squared distance, sine of the half angle) the narrowphase compares against;
@@ -453,8 +368,6 @@ class Settings:
         known = {f.name for f in fields(self)}
         unknown = set(changes) - known
         if unknown:
-            from .errors import SandboxError
-
             raise SandboxError(f"unknown setting(s): {', '.join(sorted(unknown))}; known: {', '.join(sorted(known))}")
         values = {f.name: getattr(self, f.name) for f in fields(self)}
         values.update(changes)
