@@ -26,6 +26,7 @@ from .persistence import ContactHistory
 from .shapes import PolytopePool, ShapeTable
 from .solvers.block_adjacency import BlockScratch
 from .solvers.pgs import Coloring
+from .solvers.point_lanes import LaneRows
 from .solvers.rows import Rows
 from .step_scalars import StepScalars
 
@@ -85,6 +86,7 @@ class BufferSet:
         self.rows = Rows(point_capacity)
         self.history = ContactHistory(point_capacity, caps.shapes)
         self.blocks = BlockScratch(point_capacity, caps.bodies)
+        self.lanes = LaneRows(point_capacity)  # the rows in groups of eight, for the CPU sweep
         self.coloring = Coloring(caps.pairs, caps.bodies)
         self.impacts = ImpactMonitor(point_capacity, caps.bodies)
         self.errors = ErrorFlags()

@@ -18,6 +18,7 @@ from .awake import note_touch, shape_id, shape_total
 from .backend import serialize_light_loops
 from .math3d import dot, quat_mul, quat_rotate
 from .narrowphase import collide_kinds
+from .lanes import lane_capacity
 from .narrowphase.manifold import MAX_POINTS, Manifold, ShapePose
 from .broadphase import swept_distance
 from .manifold_cache import (carry_overlap, close_step, find_reusable, old_slot, remember_manifold, reuse_manifold,
@@ -40,7 +41,7 @@ correction)."""
 class Contacts:
     def __init__(self, pair_capacity: int, shape_capacity: int):
         pc = max(16, pair_capacity)
-        cc = pc * MAX_POINTS
+        cc = lane_capacity(pc * MAX_POINTS)  # whole groups for the lane sweep (lanes.py)
         sc = max(1, shape_capacity)
         self.pair_capacity = pc
         self.capacity = cc

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import SandboxError
+from .lanes import LANES
 
 
 class StepInspection:
@@ -84,7 +85,9 @@ class StepInspection:
         blocks = slots // 2
         counted = self._block_counted(blocks)
         weight = np.where(counted, float(s.weight[body]), 1.0 / float(s.scale_idle[body]))[:, None]
-        dv, dw = s.slot_dv.to_numpy()[slots], s.slot_dw.to_numpy()[slots]
+        side, group, lane = slots % 2, blocks // LANES, blocks % LANES  # block_adjacency.slot_change
+        changes = s.slots.to_numpy()[side, group, :, lane]  # [side, group][row, lane]
+        dv, dw = changes[:, :3], changes[:, 3:]
         st = self.world.buf.bodies.state_numpy(("linear_velocity", "angular_velocity"))
         v1, w1 = st["linear_velocity"][body], st["angular_velocity"][body]
         gravity = np.zeros(3)

@@ -10,6 +10,7 @@ endpoints (mass_splitting.update_support), and PGS's warm start uses the merge.
 import taichi as ti
 
 from ..backend import serialize_light_loops
+from ..lanes import LANE_BITS, LANES, lane_capacity
 from ..prefix_sum import Scanner, exclusive_scan, sort_range
 from .contact_spring import BAUMGARTE_RATE, GRAVITY_REACH, IDLE_SHARE, RESTITUTION_THRESHOLD, SPLIT_BOUND, STEP_DT
 from .light_bodies import list_light_block, list_light_body, mark_light, reset_light_lists
@@ -24,7 +25,7 @@ MODE_JACOBI_BOUNDED = 2
 @ti.data_oriented
 class BlockScratch:
     def __init__(self, block_capacity: int, body_capacity: int):
-        bc = max(16, block_capacity)
+        bc = lane_capacity(max(16, block_capacity))
         nb = max(1, body_capacity)
         self.block_capacity = bc
         self.block_count = ti.field(ti.i32, ())
@@ -33,8 +34,11 @@ class BlockScratch:
         self.adj_fill = ti.field(ti.i32, nb)
         self.adj_total = ti.field(ti.i32, ())
         self.adj = ti.field(ti.i32, 2 * bc)
-        self.slot_dv = ti.Vector.field(3, ti.f32, 2 * bc)
-        self.slot_dw = ti.Vector.field(3, ti.f32, 2 * bc)
+        # a block's velocity changes (dv, dw) of its body a (side 0) and b (side 1), in groups of
+        # eight blocks that the lane sweep stores a row at a time (lanes.py):
+        # ``[side, group][0:3 dv / 3:6 dw, lane]``, read and written through ``slot_change`` and
+        # ``store_slots``
+        self.slots = ti.Matrix.field(6, LANES, ti.f32, (2, bc // LANES))
         self.active_count = ti.field(ti.i32, nb)  # blocks of the body that can act this step (n_b)
         self.fresh_count = ti.field(ti.i32, nb)  # of those, impacts (new and fast)
         self.scale = ti.field(ti.f32, nb)  # of the blocks counted in n_b
@@ -51,6 +55,27 @@ class BlockScratch:
         self.light_body_count = ti.field(ti.i32, ())
         self.light_sweeps = ti.field(ti.i32, ())  # this step's extra sweeps of those blocks (0: none)
         self.scanner = Scanner(nb + 1)
+
+
+@ti.func
+def slot_change(s: ti.template(), slot: ti.i32):
+    """(dv, dw) in adjacency slot ``slot`` (2 k + side: block k's change of its body a or b)."""
+    side, k = slot & 1, slot >> 1  # slot >= 0: bit operations, not signed division
+    g, l = k >> LANE_BITS, k & (LANES - 1)
+    dv = ti.math.vec3(s.slots[side, g][0, l], s.slots[side, g][1, l], s.slots[side, g][2, l])
+    dw = ti.math.vec3(s.slots[side, g][3, l], s.slots[side, g][4, l], s.slots[side, g][5, l])
+    return dv, dw
+
+
+@ti.func
+def store_slots(s: ti.template(), k: ti.i32, dva, dwa, dvb, dwb):
+    """Block k's changes of its bodies a and b into its two slots."""
+    g, l = k >> LANE_BITS, k & (LANES - 1)
+    for e in ti.static(range(3)):
+        s.slots[0, g][e, l] = dva[e]
+        s.slots[0, g][3 + e, l] = dwa[e]
+        s.slots[1, g][e, l] = dvb[e]
+        s.slots[1, g][3 + e, l] = dwb[e]
 
 
 @ti.func

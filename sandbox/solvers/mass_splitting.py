@@ -59,7 +59,7 @@ import taichi as ti
 
 from ..awake import body_id, body_total
 from ..math3d import cross, mat_vec
-from .block_adjacency import PER_POINT, block_range
+from .block_adjacency import PER_POINT, block_range, slot_change, store_slots
 from .contact_spring import GRAVITY_REACH, INV_H, LOAD_BLEND, PRELOAD_LAG, RELAX_PUSH, STEP_DT, support_push
 from .impact_carry import clamp_impact_carry
 from .rolling import rolling_impulse
@@ -128,11 +128,13 @@ def gather_body(s: ti.template(), bodies: ti.template(), dv_extra: vec3, i: ti.i
             slot = s.adj[e]
             if ti.static(listed):
                 if s.block_light[slot // 2]:
-                    dv += s.slot_dv[slot]
-                    dw += s.slot_dw[slot]
+                    slot_dv, slot_dw = slot_change(s, slot)
+                    dv += slot_dv
+                    dw += slot_dw
             else:
-                dv += s.slot_dv[slot]
-                dw += s.slot_dw[slot]
+                slot_dv, slot_dw = slot_change(s, slot)
+                dv += slot_dv
+                dw += slot_dw
         if ti.static(listed):
             bodies.lin_vel[i] += dv
         else:
@@ -197,10 +199,7 @@ def warm_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: 
     for q in range(start, start + count):
         clamp_impact_carry(rows, c, bodies, q)
     dva, dwa, dvb, dwb = _warm_delta(rows, c, bodies, a, b, start, count, friction)
-    s.slot_dv[2 * k] = dva
-    s.slot_dw[2 * k] = dwa
-    s.slot_dv[2 * k + 1] = dvb
-    s.slot_dw[2 * k + 1] = dwb
+    store_slots(s, k, dva, dwa, dvb, dwb)
 
 
 @ti.func
@@ -244,14 +243,7 @@ def sweep_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies:
         for q in range(start, start + count):
             va, wa, vb, wb = _apply_accumulated(rows, c, friction, q, va, wa, vb, wb)
     wa_, wb_ = block_weights(s, rows, start, a, b)
-    dva = (va - va0) * wa_
-    dwa = (wa - wa0) * wa_
-    dvb = (vb - vb0) * wb_
-    dwb = (wb - wb0) * wb_
-    s.slot_dv[2 * k] = dva
-    s.slot_dw[2 * k] = dwa
-    s.slot_dv[2 * k + 1] = dvb
-    s.slot_dw[2 * k + 1] = dwb
+    store_slots(s, k, (va - va0) * wa_, (wa - wa0) * wa_, (vb - vb0) * wb_, (wb - wb0) * wb_)
     return fast
 
 

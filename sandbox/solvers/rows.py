@@ -50,6 +50,7 @@ impulses are summed into ``lam_step``, the step's impulse (step_impulses.py).
 
 import taichi as ti
 
+from ..lanes import lane_capacity
 from ..math3d import cross, dot, mat_mul, mat_vec, plane_basis, quat_rotate_inv
 from .contact_spring import PARAM_COUNT, RESTITUTION_THRESHOLD, row_spring, supported_load
 from .impact_carry import clear_impacts, note_impact
@@ -64,7 +65,7 @@ vec3 = ti.math.vec3
 @ti.data_oriented
 class Rows:
     def __init__(self, capacity: int):
-        c = max(16, capacity)
+        c = lane_capacity(max(16, capacity))
         self.capacity = c
         self.ra = ti.Vector.field(3, ti.f32, c)
         self.rb = ti.Vector.field(3, ti.f32, c)

@@ -25,7 +25,8 @@ them, in two ways:
   CPU thread works on it: the threads form a team (solvers/team.py) that walks the same
   phases, sharing each phase's blocks or bodies and waiting at its end. The same bits
   again, with both cores and without a thread-pool dispatch per phase (~50 us each on
-  the 2-core VM, benchmarks/loop_dispatch.py): the CPU default.
+  the 2-core VM, benchmarks/loop_dispatch.py): the CPU default. Its sweeps of per-point
+  blocks go eight points at a time, on the vector units (point_lanes.py): the same bits.
 
 ``Schedule.launch`` (solvers/schedule.py) picks one from ``Settings.iteration_launch``
 and what the solver's description allows; ``step.py`` keeps the stage-by-stage kernels
@@ -35,11 +36,13 @@ for the profiler (one timer per stage) and for residual recording (a read per sw
 import taichi as ti
 
 from ..awake import body_id, body_total
+from ..lanes import LANES
 from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loop
 from . import team as tm
 from .contact_spring import params_gravity
 from .impact_carry import folds_this_step
 from .mass_splitting import gather_body, sweep_block, sweep_blocks, sweep_light_blocks, warm_block, warm_start_blocks
+from .point_lanes import copy_group, lanes_apply, sweep_point_lanes
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX
 from .step_impulses import add_step_impulse, add_step_impulses_loop
@@ -178,29 +181,51 @@ def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int, 
     if schedule == PGS_COLORED:
         per_sweep = MAX_COLORS + 1  # every colour, then the overflow colour
         return iterations * ((sweeps + relax) * per_sweep + 4)
-    return iterations * (2 * (sweeps + ratio + relax + 1) + 4)
+    return iterations * (2 * (sweeps + ratio + relax + 1) + 4) + 1  # + 1: the lane copy (point_lanes.py)
 
 
 @ti.func
-def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
-                 rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
+                 s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
                  mode: ti.template(), friction: ti.template(), then_warm: ti.i32, warm_only: ti.template(),
                  substep: ti.i32 = 0, fast_slot: ti.i32 = 0, listed: ti.template() = False) -> ti.i32:
     """Phase p over all blocks: their warm start, or one sweep (a biased one marks a fast push
     in ``team.fast[fast_slot]``, _team_member); ``listed``: over light bodies' blocks only (an
-    extra sweep, light_bodies.py). Returns the next phase."""
+    extra sweep, light_bodies.py). A sweep of per-point blocks goes eight at a time: its items
+    are groups of ``lr`` (point_lanes.py). Returns the next phase."""
+    grouped = ti.static(lanes_apply(kind, friction, mode) and not warm_only and not listed)
     n = s.light_block_count[None] if ti.static(listed) else s.block_count[None]
-    lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
+    items = (n + LANES - 1) // LANES if ti.static(grouped) else n
+    lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
     while lo < hi:
         for idx in range(lo, hi):
             k = s.light_blocks[idx] if ti.static(listed) else idx
-            if ti.static(warm_only):
+            if ti.static(grouped):
+                if sweep_point_lanes(lr, s, rows, c, bodies, mode, friction, then_warm, idx, n):
+                    team.fast[fast_slot] = 1
+            elif ti.static(warm_only):
                 warm_block(s, rows, c, bodies, kind, friction, k)
             elif sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k, substep):
                 team.fast[fast_slot] = 1  # a plain store before this member's "finished" increment
         tm.finish(team, p, hi - lo)
-        lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
-    tm.wait(team, p, n)
+        lo, hi, j = tm.next_chunk(team, p, items, member, members, j)
+    tm.wait(team, p, items)
+    return p + 1
+
+
+@ti.func
+def _lane_copy_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
+                     s: ti.template(), rows: ti.template(), c: ti.template()) -> ti.i32:
+    """Phase p: this step's rows into ``lr``'s groups, for the sweeps of per-point blocks."""
+    n = s.block_count[None]
+    items = (n + LANES - 1) // LANES
+    lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
+    while lo < hi:
+        for g in range(lo, hi):
+            copy_group(lr, s, rows, c, g, n)
+        tm.finish(team, p, hi - lo)
+        lo, hi, j = tm.next_chunk(team, p, items, member, members, j)
+    tm.wait(team, p, items)
     return p + 1
 
 
@@ -260,7 +285,7 @@ def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
 
 
 @ti.func
-def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
+def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
                   rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                   motion: ti.template(), col: ti.template(), kind: ti.template(),
                   schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3,
@@ -273,7 +298,7 @@ def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
         if pose_after:
             p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
     else:
-        p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, mode, friction, then_warm, False,
+        p = _block_phase(team, p, member, members, lr, s, rows, c, bodies, kind, mode, friction, then_warm, False,
                          substep, fast_slot)
         dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
         if pose_after:
@@ -300,7 +325,8 @@ def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 
 
 @ti.func
-def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.template(), rows: ti.template(),
+def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
+                 rows: ti.template(),
                  c: ti.template(), bodies: ti.template(), col: ti.template(), kind: ti.template(),
                  schedule: ti.template(), friction: ti.template(), warm: ti.template(), track: ti.template(),
                  awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
@@ -308,13 +334,15 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
     """What one thread runs: every phase of ``iterate_in_order``, in its order."""
     fold = ti.static(folds_warm_start(schedule, warm))
     p = 0
+    if ti.static(schedule == BLOCKS and lanes_apply(kind, friction, BIASED)):
+        p = _lane_copy_phase(team, p, member, members, lr, s, rows, c)
     for it in range(iterations):
         first = 1
         if ti.static(fold):
             first = 1 if it == 0 else 1 - folds_this_step(rows)  # the same for every member: set before the loop
         if first:
             if ti.static(warm):
-                p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, True)
+                p = _block_phase(team, p, member, members, lr, s, rows, c, bodies, kind, BIASED, friction, 0, True)
                 p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER, gravity * h,
                                 gravity, h)
             else:
@@ -323,12 +351,12 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
         fast_slot = p  # this substep's biased phases mark a fast push here; read once they are all done
         extra = light_sweeps_now(s, schedule)  # the same for every member: set before the loop
         for sb in range(sweeps):
-            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
+            p = _sweep_phases(team, p, member, members, lr, s, rows, c, bodies, awake, motion, col, kind, schedule,
                               BIASED, friction, 0, int(sb == sweeps - 1 and extra == 0), gravity, h, it, fast_slot)
         if ti.static(schedule == BLOCKS):
             for _e in range(extra):
-                p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, False, it,
-                                 fast_slot, True)
+                p = _block_phase(team, p, member, members, lr, s, rows, c, bodies, kind, BIASED, friction, 0, False,
+                                 it, fast_slot, True)
                 p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_LIGHT, vec3(0.0),
                                 gravity, h)
             if extra > 0:
@@ -340,7 +368,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, s: ti.tem
             then_warm = 0
             if ti.static(fold):
                 then_warm = folds_this_step(rows) if it < iterations - 1 and sr == n_relax - 1 else 0
-            p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
+            p = _sweep_phases(team, p, member, members, lr, s, rows, c, bodies, awake, motion, col, kind, schedule,
                               RELAX, friction, then_warm, 0, gravity, h, it)
         if ti.static(track):
             p = _point_phase(team, p, member, members, c, rows)
@@ -360,7 +388,7 @@ def iterate_shared_loops(team: ti.template(), b: ti.template(), kind: ti.templat
     tm.reset_loop(team, ti.static(team.claimed.shape[0]))
     for i in range(members * tm.TASK_ITEMS):
         if i % tm.TASK_ITEMS == 0:
-            _team_member(team, i // tm.TASK_ITEMS, members, s, rows, c, bodies, col, kind, schedule, friction,
+            _team_member(team, i // tm.TASK_ITEMS, members, b.lanes, s, rows, c, bodies, col, kind, schedule, friction,
                          warm, track, awake, motion, gravity, h, iterations, sweeps, relax)
 
 
