@@ -62,7 +62,8 @@ def main() -> None:
         for _ in range(repeats):
             n = b.blocks.block_count[None]
             for g in range((n + LANES - 1) // LANES):
-                sweep_point_lanes(b.lanes, b.blocks, b.rows, b.contacts, b.bodies, mode, friction, 0, g, n)
+                sweep_point_lanes(b.lanes, b.blocks, b.rows, b.contacts, b.bodies, ti.static(int(mode == BIASED)),
+                                  friction, 0, g, n)
 
     def best(fn, *args) -> float:
         fn(1, *args)

@@ -61,9 +61,9 @@ NORMAL, T1, T2, INV_K = 0, 3, 6, 9
 """First rows of the four vectors in ``LaneRows.vectors``."""
 
 
-def lanes_apply(kind: int, friction: int, mode: int) -> bool:
-    """Whether a sweep of ``kind`` blocks in ``mode`` goes eight points at a time."""
-    return kind == PER_POINT and not (friction & ROLLING) and mode in (BIASED, RELAX)
+def lanes_apply(kind: int, friction: int) -> bool:
+    """Whether the biased and relax sweeps of ``kind`` blocks go eight points at a time."""
+    return kind == PER_POINT and not (friction & ROLLING)
 
 
 @ti.func
@@ -120,7 +120,7 @@ def _dot(x0, x1, x2, y0, y1, y2):
 
 
 @ti.func
-def _per_lane(lr: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), mode: ti.template(),
+def _per_lane(lr: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), biased: ti.i32,
               g: ti.i32, n: ti.i32) -> ti.i32:
     """The group's scalar parts, point by point: the normal rows' targets into ``lr.target`` (a
     relax sweep also keeps the separation: normal_target) and, in a biased sweep, whether a row
@@ -128,22 +128,27 @@ def _per_lane(lr: ti.template(), rows: ti.template(), c: ti.template(), bodies: 
     fast = 0
     for l in range(ti.min(LANES, n - g * LANES)):
         q = g * LANES + l
-        target, _ = normal_target(rows, c, bodies, q, mode)
-        lr.target[g][0, l] = target
-        if ti.static(mode == BIASED):
+        target = 0.0
+        if biased:
+            target, _ = normal_target(rows, c, bodies, q, BIASED)
             if rows.params[RELAX_PUSH] > 0.0:
                 fast = ti.max(fast, pushes_fast(rows, c, q))
+        else:
+            target, _ = normal_target(rows, c, bodies, q, RELAX)
+        lr.target[g][0, l] = target
     return fast
 
 
 @ti.func
 def sweep_point_lanes(lr: ti.template(), s: ti.template(), rows: ti.template(), c: ti.template(),
-                      bodies: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32,
+                      bodies: ti.template(), biased: ti.i32, friction: ti.template(), then_warm: ti.i32,
                       g: ti.i32, n: ti.i32) -> ti.i32:
-    """mass_splitting.sweep_block of the per-point blocks 8 g .. 8 g + 7 below ``n``
-    (rows.solve_point, the carried warm start when ``then_warm``, the weighted slots). Returns 1
-    when a biased row of them pushes fast, else 0."""
-    fast = _per_lane(lr, rows, c, bodies, mode, g, n)
+    """mass_splitting.sweep_block of the per-point blocks 8 g .. 8 g + 7 below ``n`` in a biased
+    (``biased`` = 1) or relax sweep (rows.solve_point, the carried warm start when ``then_warm``,
+    the weighted slots). Returns 1 when a biased row of them pushes fast, else 0. The kind of
+    sweep is read at run time, so that the team's loop holds one copy of this code (its compile
+    time: docs/bench.md, "Twelfth pass"): the biased row's preload is a lane-wise choice."""
+    fast = _per_lane(lr, rows, c, bodies, biased, g, n)
     va = [lanes(0.0), lanes(0.0), lanes(0.0)]
     wa = [lanes(0.0), lanes(0.0), lanes(0.0)]
     vb = [lanes(0.0), lanes(0.0), lanes(0.0)]
@@ -181,7 +186,8 @@ def sweep_point_lanes(lr: ti.template(), s: ti.template(), rows: ti.template(), 
             t = tangents[r]
             jb = [_row(ang_b, (r + 1) * 3 + e) for e in ti.static(range(3))]
             ja = [_row(ang_a, (r + 1) * 3 + e) for e in ti.static(range(3))]
-            f[r] = lam[r + 1] - (_dot(dl[0], dl[1], dl[2], t[0], t[1], t[2]) + _dot(wb[0], wb[1], wb[2], jb[0], jb[1], jb[2])
+            f[r] = lam[r + 1] - (_dot(dl[0], dl[1], dl[2], t[0], t[1], t[2])
+                                 + _dot(wb[0], wb[1], wb[2], jb[0], jb[1], jb[2])
                                  - _dot(wa[0], wa[1], wa[2], ja[0], ja[1], ja[2])) * inv_k[r + 1]
         limit = _row(scalars, FRICTION) * lam[0]
         mag = ti.sqrt(f[0] * f[0] + f[1] * f[1])
@@ -206,10 +212,9 @@ def sweep_point_lanes(lr: ti.template(), s: ti.template(), rows: ti.template(), 
     vn = (_dot(vb[0] - va[0], vb[1] - va[1], vb[2] - va[2], nrm[0], nrm[1], nrm[2])
           + _dot(wb[0], wb[1], wb[2], jb0[0], jb0[1], jb0[2]) - _dot(wa[0], wa[1], wa[2], ja0[0], ja0[1], ja0[2]))
     ln = lam[0] - (vn + target) * inv_k[0]
-    if ti.static(mode == BIASED):
-        pre = _row(scalars, PRELOAD)
-        soft = lam[0] - (vn + target + _row(scalars, GAMMA) * (lam[0] - pre)) * _row(scalars, SOFT_K)
-        ln = ti.select(ln > pre, soft, ln)
+    pre = _row(scalars, PRELOAD)  # a biased row: compliance on the impulse beyond the preload only
+    soft = lam[0] - (vn + target + _row(scalars, GAMMA) * (lam[0] - pre)) * _row(scalars, SOFT_K)
+    ln = ti.select(ti.Vector([biased] * LANES, ti.i32) != 0, ti.select(ln > pre, soft, ln), ln)
     ln = ti.max(ln, 0.0)
     d = ln - lam[0]
     for e in ti.static(range(3)):

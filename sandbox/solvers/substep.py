@@ -185,28 +185,41 @@ def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int, 
 
 
 @ti.func
-def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
-                 s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
+def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
+                 rows: ti.template(), c: ti.template(), bodies: ti.template(), kind: ti.template(),
                  mode: ti.template(), friction: ti.template(), then_warm: ti.i32, warm_only: ti.template(),
                  substep: ti.i32 = 0, fast_slot: ti.i32 = 0, listed: ti.template() = False) -> ti.i32:
     """Phase p over all blocks: their warm start, or one sweep (a biased one marks a fast push
     in ``team.fast[fast_slot]``, _team_member); ``listed``: over light bodies' blocks only (an
-    extra sweep, light_bodies.py). A sweep of per-point blocks goes eight at a time: its items
-    are groups of ``lr`` (point_lanes.py). Returns the next phase."""
-    grouped = ti.static(lanes_apply(kind, friction, mode) and not warm_only and not listed)
+    extra sweep, light_bodies.py). Returns the next phase."""
     n = s.light_block_count[None] if ti.static(listed) else s.block_count[None]
-    items = (n + LANES - 1) // LANES if ti.static(grouped) else n
-    lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
+    lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
     while lo < hi:
         for idx in range(lo, hi):
             k = s.light_blocks[idx] if ti.static(listed) else idx
-            if ti.static(grouped):
-                if sweep_point_lanes(lr, s, rows, c, bodies, mode, friction, then_warm, idx, n):
-                    team.fast[fast_slot] = 1
-            elif ti.static(warm_only):
+            if ti.static(warm_only):
                 warm_block(s, rows, c, bodies, kind, friction, k)
             elif sweep_block(s, rows, c, bodies, kind, mode, friction, then_warm, k, substep):
                 team.fast[fast_slot] = 1  # a plain store before this member's "finished" increment
+        tm.finish(team, p, hi - lo)
+        lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
+    tm.wait(team, p, n)
+    return p + 1
+
+
+@ti.func
+def _lane_block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
+                      s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
+                      friction: ti.template(), biased: ti.i32, then_warm: ti.i32, fast_slot: ti.i32) -> ti.i32:
+    """Phase p: one biased or relax sweep of the per-point blocks, eight at a time, its items
+    the groups of ``lr`` (point_lanes.py). Returns the next phase."""
+    n = s.block_count[None]
+    items = (n + LANES - 1) // LANES
+    lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
+    while lo < hi:
+        for g in range(lo, hi):
+            if sweep_point_lanes(lr, s, rows, c, bodies, biased, friction, then_warm, g, n):
+                team.fast[fast_slot] = 1
         tm.finish(team, p, hi - lo)
         lo, hi, j = tm.next_chunk(team, p, items, member, members, j)
     tm.wait(team, p, items)
@@ -285,7 +298,7 @@ def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
 
 
 @ti.func
-def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
+def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
                   rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                   motion: ti.template(), col: ti.template(), kind: ti.template(),
                   schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3,
@@ -298,7 +311,7 @@ def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
         if pose_after:
             p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
     else:
-        p = _block_phase(team, p, member, members, lr, s, rows, c, bodies, kind, mode, friction, then_warm, False,
+        p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, mode, friction, then_warm, False,
                          substep, fast_slot)
         dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
         if pose_after:
@@ -325,6 +338,46 @@ def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 
 
 @ti.func
+def _lane_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
+                 rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
+                 motion: ti.template(), kind: ti.template(), friction: ti.template(), fold: ti.template(),
+                 gravity: vec3, h: ti.f32, it: ti.i32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32,
+                 extra: ti.i32, fast_slot: ti.i32) -> ti.i32:
+    """Substep ``it``'s sweeps when they go eight points at a time: the biased ones, the light
+    bodies' extra ones, the relax ones (one more after a fast push), each followed by its gather,
+    in _team_member's order, but as one loop that reads the kind of sweep at run time, so that
+    the lane sweep is compiled once (its compile time: docs/bench.md, "Twelfth pass")."""
+    n_relax = relax
+    k = 0
+    while k < sweeps + n_relax or k == sweeps:
+        if k == sweeps:  # the biased sweeps are done
+            for _e in range(extra):
+                p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, False, it,
+                                 fast_slot, True)
+                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_LIGHT, vec3(0.0),
+                                gravity, h)
+            if extra > 0:
+                p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
+            n_relax = relax + ti.atomic_add(team.fast[fast_slot], 0)  # the same for every member
+        if k < sweeps + n_relax:
+            biased = 1 if k < sweeps else 0
+            then_warm = 0
+            if ti.static(fold):
+                then_warm = folds_this_step(rows) if biased == 0 and it < iterations - 1 and k - sweeps == n_relax - 1 \
+                    else 0
+            p = _lane_block_phase(team, p, member, members, lr, s, rows, c, bodies, friction, biased, then_warm,
+                                  fast_slot)
+            dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
+            if biased * int(k == sweeps - 1 and extra == 0):  # the poses advance after the last biased sweep
+                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_POSE, dv_extra, gravity,
+                                h)
+            else:
+                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER, dv_extra, gravity, h)
+        k += 1
+    return p
+
+
+@ti.func
 def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
                  rows: ti.template(),
                  c: ti.template(), bodies: ti.template(), col: ti.template(), kind: ti.template(),
@@ -333,8 +386,9 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
                  sweeps: ti.i32, relax: ti.i32):
     """What one thread runs: every phase of ``iterate_in_order``, in its order."""
     fold = ti.static(folds_warm_start(schedule, warm))
+    grouped = ti.static(schedule == BLOCKS and lanes_apply(kind, friction))  # point_lanes.py
     p = 0
-    if ti.static(schedule == BLOCKS and lanes_apply(kind, friction, BIASED)):
+    if ti.static(grouped):
         p = _lane_copy_phase(team, p, member, members, lr, s, rows, c)
     for it in range(iterations):
         first = 1
@@ -342,7 +396,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
             first = 1 if it == 0 else 1 - folds_this_step(rows)  # the same for every member: set before the loop
         if first:
             if ti.static(warm):
-                p = _block_phase(team, p, member, members, lr, s, rows, c, bodies, kind, BIASED, friction, 0, True)
+                p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, True)
                 p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER, gravity * h,
                                 gravity, h)
             else:
@@ -350,26 +404,31 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
                                 gravity, h)
         fast_slot = p  # this substep's biased phases mark a fast push here; read once they are all done
         extra = light_sweeps_now(s, schedule)  # the same for every member: set before the loop
-        for sb in range(sweeps):
-            p = _sweep_phases(team, p, member, members, lr, s, rows, c, bodies, awake, motion, col, kind, schedule,
-                              BIASED, friction, 0, int(sb == sweeps - 1 and extra == 0), gravity, h, it, fast_slot)
-        if ti.static(schedule == BLOCKS):
-            for _e in range(extra):
-                p = _block_phase(team, p, member, members, lr, s, rows, c, bodies, kind, BIASED, friction, 0, False,
-                                 it, fast_slot, True)
-                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_LIGHT, vec3(0.0),
-                                gravity, h)
-            if extra > 0:
-                p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
-        n_relax = relax
-        if ti.static(schedule == BLOCKS):
-            n_relax = relax + ti.atomic_add(team.fast[fast_slot], 0)  # the same for every member: never reset in a loop
-        for sr in range(n_relax):
-            then_warm = 0
-            if ti.static(fold):
-                then_warm = folds_this_step(rows) if it < iterations - 1 and sr == n_relax - 1 else 0
-            p = _sweep_phases(team, p, member, members, lr, s, rows, c, bodies, awake, motion, col, kind, schedule,
-                              RELAX, friction, then_warm, 0, gravity, h, it)
+        if ti.static(grouped):
+            p = _lane_sweeps(team, p, member, members, lr, s, rows, c, bodies, awake, motion, kind, friction, fold,
+                             gravity, h, it, iterations, sweeps, relax, extra, fast_slot)
+        else:
+            for sb in range(sweeps):
+                p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
+                                  BIASED, friction, 0, int(sb == sweeps - 1 and extra == 0), gravity, h, it, fast_slot)
+            if ti.static(schedule == BLOCKS):
+                for _e in range(extra):
+                    p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, False,
+                                     it, fast_slot, True)
+                    p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_LIGHT, vec3(0.0),
+                                    gravity, h)
+                if extra > 0:
+                    p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
+            n_relax = relax
+            if ti.static(schedule == BLOCKS):
+                # the same for every member: never reset in a loop
+                n_relax = relax + ti.atomic_add(team.fast[fast_slot], 0)
+            for sr in range(n_relax):
+                then_warm = 0
+                if ti.static(fold):
+                    then_warm = folds_this_step(rows) if it < iterations - 1 and sr == n_relax - 1 else 0
+                p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
+                                  RELAX, friction, then_warm, 0, gravity, h, it)
         if ti.static(track):
             p = _point_phase(team, p, member, members, c, rows)
 
