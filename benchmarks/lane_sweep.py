@@ -57,13 +57,15 @@ def main() -> None:
                 sweep_block(b.blocks, b.rows, b.contacts, b.bodies, PER_POINT, mode, friction, 0, k, 0)
 
     @ti.kernel
-    def by_lanes(repeats: ti.i32, mode: ti.template()):
+    def lanes_kernel(repeats: ti.i32, biased: ti.i32):
         ti.loop_config(serialize=True)
         for _ in range(repeats):
             n = b.blocks.block_count[None]
             for g in range((n + LANES - 1) // LANES):
-                sweep_point_lanes(b.lanes, b.blocks, b.rows, b.contacts, b.bodies, ti.static(int(mode == BIASED)),
-                                  friction, 0, g, n)
+                sweep_point_lanes(b.lanes, b.blocks, b.rows, b.contacts, b.bodies, biased, friction, 0, g, n)
+
+    def by_lanes(repeats: int, mode: int) -> None:  # the kind of sweep a run-time value, as in the team's loop
+        lanes_kernel(repeats, int(mode == BIASED))
 
     def best(fn, *args) -> float:
         fn(1, *args)
