@@ -6,8 +6,8 @@ the points of a sweep. Written point by point (mass_splitting.sweep_block), LLVM
 point at a time; written as one expression over eight consecutive points' values, it runs each
 as one 8-wide instruction, provided the eight values come from one field element (lanes.py).
 So the team (substep.iterate_shared) first copies the rows a sweep reads into ``LaneRows``, in
-groups of eight points (once a step: they change only between steps), and every sweep of
-per-point blocks then goes group by group, its slots stored in groups too
+groups of eight points (once a step: they change only between steps; ``lane_copy_phase``), and every
+sweep of per-point blocks then goes group by group (``lane_block_phase``), its slots stored in groups too
 (block_adjacency.store_slots). What differs from point to point (the normal row's target, a
 separation update or a manifold walk: normal_target; the fast-push test) is computed lane by lane
 through the scalar code; the accumulated impulses stay in ``rows.lam``, read and written lane by
@@ -23,6 +23,7 @@ keep the scalar path. Measured: docs/bench.md, "Eight points at a time".
 import taichi as ti
 
 from ..lanes import LANES, lane_group_field
+from . import team as tm
 from .block_adjacency import PER_POINT
 from .contact_spring import RELAX_PUSH
 from .normal_target import BIASED, RELAX, normal_target, pushes_fast
@@ -246,3 +247,38 @@ def sweep_point_lanes(lr: ti.template(), s: ti.template(), rows: ti.template(), 
     s.slots[1, g] = ti.Matrix.rows([(vb[e] - vb0[e]) * weight_b for e in ti.static(range(3))]
                                    + [(wb[e] - wb0[e]) * weight_b for e in ti.static(range(3))])
     return fast
+
+
+@ti.func
+def lane_block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
+                     s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
+                     friction: ti.template(), biased: ti.i32, then_warm: ti.i32, fast_slot: ti.i32) -> ti.i32:
+    """Phase p: one biased or relax sweep of the per-point blocks, eight at a time, its items
+    the groups of ``lr``. Returns the next phase (solvers/team.py)."""
+    n = s.block_count[None]
+    items = (n + LANES - 1) // LANES
+    lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
+    while lo < hi:
+        for g in range(lo, hi):
+            if sweep_point_lanes(lr, s, rows, c, bodies, biased, friction, then_warm, g, n):
+                team.fast[fast_slot] = 1
+        tm.finish(team, p, hi - lo)
+        lo, hi, j = tm.next_chunk(team, p, items, member, members, j)
+    tm.wait(team, p, items)
+    return p + 1
+
+
+@ti.func
+def lane_copy_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
+                    s: ti.template(), rows: ti.template(), c: ti.template()) -> ti.i32:
+    """Phase p of the team's loop (solvers/team.py): this step's rows into ``lr``'s groups."""
+    n = s.block_count[None]
+    items = (n + LANES - 1) // LANES
+    lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
+    while lo < hi:
+        for g in range(lo, hi):
+            copy_group(lr, s, rows, c, g, n)
+        tm.finish(team, p, hi - lo)
+        lo, hi, j = tm.next_chunk(team, p, items, member, members, j)
+    tm.wait(team, p, items)
+    return p + 1

@@ -36,13 +36,12 @@ for the profiler (one timer per stage) and for residual recording (a read per sw
 import taichi as ti
 
 from ..awake import body_id, body_total
-from ..lanes import LANES
 from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loop
 from . import team as tm
 from .contact_spring import params_gravity
 from .impact_carry import folds_this_step
 from .mass_splitting import gather_body, sweep_block, sweep_blocks, sweep_light_blocks, warm_block, warm_start_blocks
-from .point_lanes import copy_group, lanes_apply, sweep_point_lanes
+from .point_lanes import lane_block_phase, lane_copy_phase, lanes_apply
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX
 from .step_impulses import add_step_impulse, add_step_impulses_loop
@@ -207,41 +206,6 @@ def _block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
     return p + 1
 
 
-@ti.func
-def _lane_block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
-                      s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
-                      friction: ti.template(), biased: ti.i32, then_warm: ti.i32, fast_slot: ti.i32) -> ti.i32:
-    """Phase p: one biased or relax sweep of the per-point blocks, eight at a time, its items
-    the groups of ``lr`` (point_lanes.py). Returns the next phase."""
-    n = s.block_count[None]
-    items = (n + LANES - 1) // LANES
-    lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
-    while lo < hi:
-        for g in range(lo, hi):
-            if sweep_point_lanes(lr, s, rows, c, bodies, biased, friction, then_warm, g, n):
-                team.fast[fast_slot] = 1
-        tm.finish(team, p, hi - lo)
-        lo, hi, j = tm.next_chunk(team, p, items, member, members, j)
-    tm.wait(team, p, items)
-    return p + 1
-
-
-@ti.func
-def _lane_copy_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
-                     s: ti.template(), rows: ti.template(), c: ti.template()) -> ti.i32:
-    """Phase p: this step's rows into ``lr``'s groups, for the sweeps of per-point blocks."""
-    n = s.block_count[None]
-    items = (n + LANES - 1) // LANES
-    lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
-    while lo < hi:
-        for g in range(lo, hi):
-            copy_group(lr, s, rows, c, g, n)
-        tm.finish(team, p, hi - lo)
-        lo, hi, j = tm.next_chunk(team, p, items, member, members, j)
-    tm.wait(team, p, items)
-    return p + 1
-
-
 GATHER, GRAVITY, POSE, GATHER_POSE, GATHER_LIGHT = 0, 1, 2, 3, 4
 """What a body phase does to each body: add its slots (and ``dv_extra``), add gravity,
 advance its pose, add its slots and then advance its pose, or (a listed body only) add its
@@ -365,7 +329,7 @@ def _lane_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
             if ti.static(fold):
                 then_warm = folds_this_step(rows) if biased == 0 and it < iterations - 1 and k - sweeps == n_relax - 1 \
                     else 0
-            p = _lane_block_phase(team, p, member, members, lr, s, rows, c, bodies, friction, biased, then_warm,
+            p = lane_block_phase(team, p, member, members, lr, s, rows, c, bodies, friction, biased, then_warm,
                                   fast_slot)
             dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
             if biased * int(k == sweeps - 1 and extra == 0):  # the poses advance after the last biased sweep
@@ -389,7 +353,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
     grouped = ti.static(schedule == BLOCKS and lanes_apply(kind, friction))  # point_lanes.py
     p = 0
     if ti.static(grouped):
-        p = _lane_copy_phase(team, p, member, members, lr, s, rows, c)
+        p = lane_copy_phase(team, p, member, members, lr, s, rows, c)
     for it in range(iterations):
         first = 1
         if ti.static(fold):
