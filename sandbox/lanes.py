@@ -6,7 +6,7 @@ when it can prove that the eight values' addresses are consecutive. Taichi compu
 access's address from the field's root pointer, which it reloads from memory after every store
 unless its own IR optimisation (``advanced_optimization``, off here: backend.py) merges the
 loads; then no two accesses share a base and nothing vectorizes (measured: benchmarks/
-lane_sweep.py). One access to a field whose *element* holds eight points has a single base, so
+lane_layouts.py). One access to a field whose *element* holds eight points has a single base, so
 the data the vector code reads and writes lives in groups: ``lane_group_field(rows, n)`` is a
 field of ``n`` points' groups, each a ``rows`` x 8 matrix (row: one quantity, column: one point
 of the group). A sweep's last group reads and writes lanes past the point count, so every buffer

@@ -15,9 +15,10 @@ lane, as every other stage reads them.
 
 Every arithmetic operation is the scalar path's, in its order, on the same floats (``fast_math``
 is off, backend.py, so LLVM packs operations but never reorders them): the same bits as
-sweep_block (tests/test_dispatch.py compares the launches; the state hashes did not move).
-Rolling friction, the manifold blocks, the light bodies' extra sweeps and the restitution pass
-keep the scalar path. Measured: docs/bench.md, "Eight points at a time".
+sweep_block (tests/test_solvers.py compares the team's launch with the others; the state hashes
+did not move). Rolling friction, the manifold blocks, the light bodies' extra sweeps and the
+restitution pass keep the scalar path. Measured: docs/bench.md, "Twelfth pass";
+benchmarks/lane_sweep.py times this sweep against sweep_block.
 """
 
 import taichi as ti
