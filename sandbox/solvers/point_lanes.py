@@ -71,14 +71,16 @@ def lanes_apply(kind: int, friction: int) -> bool:
 @ti.func
 def copy_group(lr: ti.template(), s: ti.template(), rows: ti.template(), c: ti.template(), g: ti.i32, n: ti.i32):
     """Points 8 g .. 8 g + 7 of this step's rows into group g (a lane past the count ``n`` copies
-    the last point: its results are never kept)."""
+    the last point: its results are never kept). The lanes are a run-time loop, not an unrolled
+    one: a copy once a step needs no vector code, and eight unrolled copies of ~70 loads were a
+    large part of the team kernel's compile time (docs/bench.md, "Thirteenth pass")."""
     vectors = ti.Matrix.zero(ti.f32, 12, LANES)
     scalars = ti.Matrix.zero(ti.f32, SCALARS, LANES)
     ang_a = ti.Matrix.zero(ti.f32, 9, LANES)
     ang_b = ti.Matrix.zero(ti.f32, 9, LANES)
     resp_a = ti.Matrix.zero(ti.f32, 9, LANES)
     resp_b = ti.Matrix.zero(ti.f32, 9, LANES)
-    for l in ti.static(range(LANES)):
+    for l in range(LANES):
         q = ti.min(g * LANES + l, n - 1)
         for e in ti.static(range(3)):
             vectors[NORMAL + e, l] = c.normal[q][e]
