@@ -302,6 +302,23 @@ def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 
 
 @ti.func
+def _light_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
+                  rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
+                  motion: ti.template(), kind: ti.template(), friction: ti.template(), gravity: vec3, h: ti.f32,
+                  it: ti.i32, extra: ti.i32, fast_slot: ti.i32) -> ti.i32:
+    """Substep ``it``'s ``extra`` biased sweeps of light bodies' blocks after the biased sweeps
+    (light_sweeps_now), each gathered into its light bodies, then the poses advanced (they were
+    held back for these: the last biased sweep's gather did not advance them)."""
+    for _e in range(extra):
+        p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, False, it, fast_slot,
+                         True)
+        p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_LIGHT, vec3(0.0), gravity, h)
+    if extra > 0:
+        p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
+    return p
+
+
+@ti.func
 def _lane_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
                  rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                  motion: ti.template(), kind: ti.template(), friction: ti.template(), fold: ti.template(),
@@ -315,13 +332,8 @@ def _lane_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
     k = 0
     while k < sweeps + n_relax or k == sweeps:
         if k == sweeps:  # the biased sweeps are done
-            for _e in range(extra):
-                p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, False, it,
-                                 fast_slot, True)
-                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_LIGHT, vec3(0.0),
-                                gravity, h)
-            if extra > 0:
-                p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
+            p = _light_sweeps(team, p, member, members, s, rows, c, bodies, awake, motion, kind, friction, gravity, h,
+                              it, extra, fast_slot)
             n_relax = relax + ti.atomic_add(team.fast[fast_slot], 0)  # the same for every member
         if k < sweeps + n_relax:
             biased = 1 if k < sweeps else 0
@@ -376,13 +388,8 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
                 p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
                                   BIASED, friction, 0, int(sb == sweeps - 1 and extra == 0), gravity, h, it, fast_slot)
             if ti.static(schedule == BLOCKS):
-                for _e in range(extra):
-                    p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, False,
-                                     it, fast_slot, True)
-                    p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_LIGHT, vec3(0.0),
-                                    gravity, h)
-                if extra > 0:
-                    p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
+                p = _light_sweeps(team, p, member, members, s, rows, c, bodies, awake, motion, kind, friction, gravity,
+                                  h, it, extra, fast_slot)
             n_relax = relax
             if ti.static(schedule == BLOCKS):
                 # the same for every member: never reset in a loop
