@@ -8,7 +8,10 @@ same velocities with mass_splitting.sweep_block (one point per loop item, the pa
 but the CPU team's takes) and with point_lanes.sweep_point_lanes (eight points per item, the
 team's path), a biased and a relax sweep each, on one thread. Prints nanoseconds per point update
 (the best of five runs of ``--repeats`` sweeps) and checks that the two leave the same impulses
-and slots, bit for bit. The team's loop also copies the rows into groups once a step (timed too).
+and slots, bit for bit. The team's loop also copies the rows into groups once a step, and after
+each sweep every body gathers its slots (mass_splitting.gather_body): both timed too, the gather
+per pass over the bodies (benchmarks/substep_cost.py sets these parts beside a substep's cost in
+the running step).
 """
 
 import argparse
@@ -32,7 +35,7 @@ def main() -> None:
     backend.init("cpu")
     from sandbox.lanes import LANES
     from sandbox.solvers.block_adjacency import PER_POINT
-    from sandbox.solvers.mass_splitting import sweep_block
+    from sandbox.solvers.mass_splitting import gather_body, sweep_block
     from sandbox.solvers.point_lanes import copy_group, sweep_point_lanes
     from sandbox.solvers.rows import BIASED, RELAX, contact_switch
 
@@ -63,6 +66,13 @@ def main() -> None:
             n = b.blocks.block_count[None]
             for g in range((n + LANES - 1) // LANES):
                 sweep_point_lanes(b.lanes, b.blocks, b.rows, b.contacts, b.bodies, biased, friction, 0, g, n)
+
+    @ti.kernel
+    def gather(repeats: ti.i32):
+        ti.loop_config(serialize=True)
+        for _ in range(repeats):
+            for i in range(b.bodies.count[None]):
+                gather_body(b.blocks, b.bodies, ti.math.vec3(0.0), i)
 
     def by_lanes(repeats: int, mode: int) -> None:  # the kind of sweep a run-time value, as in the team's loop
         lanes_kernel(repeats, int(mode == BIASED))
@@ -101,6 +111,8 @@ def main() -> None:
               f"{t_lanes / n * 1e9:6.1f} ({t_point / t_lanes:.2f}x)")
     b.rows.lam.from_numpy(lam0)
     b.rows.sep_now.from_numpy(sep0)
+    bodies = int(b.bodies.count[None])
+    print(f"gather of the slots: {best(gather) * 1e6:6.1f} us per pass over the {bodies} bodies (two a substep)")
     print(f"impulses and slots bit for bit the same: {same}")
 
 

@@ -1,4 +1,4 @@
-"""What one substep of a settled scene costs in the whole step, and what its parts cost alone.
+"""What one substep of a settled scene costs in the running step, and what the rest of the step does.
 
     python benchmarks/substep_cost.py [--scene pile_1000] [--solver mass-splitting] [--settle 300]
                                       [--counts 8,15,30] [--rounds 6] [--steps 20] [--set NAME=VALUE ...]
@@ -11,13 +11,11 @@ One iteration is one substep, so the slope of ms/step between the lowest and the
 one substep's cost in the running step (all counts at 8 or more: below, a substep sweeps more
 than once, formulation.sweep_plan), and what is left at zero iterations the rest of the step.
 
-Then, for the per-point schedules (``mass-splitting``, ``jacobi``), the parts of a substep each
-timed alone on one thread, as serial kernels over the same world: the biased and the relax lane
-sweep (point_lanes.sweep_point_lanes) and one gather of every body's slots
-(mass_splitting.gather_body; a substep runs two). The gap between the parts' sum and the measured
-substep is what the substep pays besides them (docs/bench.md, "Thirteenth pass"). ``--set`` changes
-a ``Settings`` field (a Python literal), as in step_bench.py: ``--set ratio_sweeps=0`` prices the
-light bodies' extra sweeps.
+Beside it, ``python benchmarks/lane_sweep.py`` times a substep's parts alone on one thread (the
+biased and the relax lane sweep, a gather of the bodies' slots, two a substep); the gap between
+their sum and the substep measured here is what the substep pays besides them (docs/bench.md,
+"Thirteenth pass"). ``--set`` changes a ``Settings`` field (a Python literal), as in
+step_bench.py: ``--set ratio_sweeps=0`` prices the light bodies' extra sweeps.
 """
 
 import argparse
@@ -46,46 +44,6 @@ def whole_steps(world: World, solver: str, counts: list[int], rounds: int, steps
             ti.sync()
             best[k] = min(best[k], (time.perf_counter() - t) / steps * 1e3)
     return best
-
-
-def lane_parts(world: World) -> dict[str, float]:
-    """[us] The biased and relax lane sweeps and one slot gather, each alone on one thread."""
-    from sandbox.lanes import LANES
-    from sandbox.solvers.mass_splitting import gather_body
-    from sandbox.solvers.point_lanes import sweep_point_lanes
-    from sandbox.solvers.rows import contact_switch
-
-    b = world.buf
-    friction = contact_switch(world.compiled_effects)
-
-    @ti.kernel
-    def sweeps(repeats: ti.i32, biased: ti.i32):
-        ti.loop_config(serialize=True)
-        for _ in range(repeats):
-            n = b.blocks.block_count[None]
-            for g in range((n + LANES - 1) // LANES):
-                sweep_point_lanes(b.lanes, b.blocks, b.rows, b.contacts, b.bodies, biased, friction, 0, g, n)
-
-    @ti.kernel
-    def gather(repeats: ti.i32):
-        ti.loop_config(serialize=True)
-        for _ in range(repeats):
-            for i in range(b.bodies.count[None]):
-                gather_body(b.blocks, b.bodies, ti.math.vec3(0.0), i)
-
-    def best(fn, *args) -> float:
-        fn(1, *args)
-        ti.sync()
-        times = []
-        for _ in range(5):
-            t = time.perf_counter()
-            fn(50, *args)
-            ti.sync()
-            times.append(time.perf_counter() - t)
-        return min(times) / 50 * 1e6
-
-    # the sweeps change velocities and impulses: measured last, on a world no longer stepped
-    return {"biased sweep": best(sweeps, 1), "relax sweep": best(sweeps, 0), "gather": best(gather)}
 
 
 def main() -> None:
@@ -117,11 +75,6 @@ def main() -> None:
           f"{int(world.buf.blocks.block_count[None])} blocks, {int(world.buf.bodies.count[None])} bodies")
     print("whole step: " + ", ".join(f"{k} iterations {best[k]:.2f} ms" for k in counts))
     print(f"one substep {per_substep * 1e3:.0f} us, the rest of the step {best[lo] - lo * per_substep:.2f} ms")
-    if a.solver in ("mass-splitting", "jacobi"):
-        parts = lane_parts(world)
-        total = parts["biased sweep"] + parts["relax sweep"] + 2 * parts["gather"]
-        print("alone on one thread: " + ", ".join(f"{name} {us:.1f} us" for name, us in parts.items())
-              + f"; a substep's parts {total:.0f} us")
 
 
 if __name__ == "__main__":
