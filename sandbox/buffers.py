@@ -86,7 +86,7 @@ class BufferSet:
         self.rows = Rows(point_capacity)
         self.history = ContactHistory(point_capacity, caps.shapes)
         self.blocks = BlockScratch(point_capacity, caps.bodies)
-        self.lanes = LaneRows(point_capacity)  # the rows in groups of eight, for the CPU sweep
+        self.lanes = None  # point_lanes.LaneRows, allocated when this set first runs the CPU team (lane_rows)
         self.coloring = Coloring(caps.pairs, caps.bodies)
         self.impacts = ImpactMonitor(point_capacity, caps.bodies)
         self.errors = ErrorFlags()
@@ -95,6 +95,16 @@ class BufferSet:
         self.manifold_cache = ManifoldCache(caps.pairs, caps.shapes)
         self.islands = None  # islands.Islands, allocated on first use (sleep.islands_of)
         self.sleep = None  # sleep.SleepBuffers, allocated when a world of this class first sleeps
+
+    def lane_rows(self) -> LaneRows:
+        """The rows in groups of eight that the CPU team's sweeps read (solvers/point_lanes.py),
+        allocated on the first call: ~57 floats a point and ~450 field nodes (0.08 s to declare on
+        the 2-core VM) that a world on CUDA, a small world's one-thread loop and the PGS schedules
+        never touch. Schedule.team calls it before every launch of the team, so no kernel that
+        reads it compiles without it."""
+        if self.lanes is None:
+            self.lanes = LaneRows(self.contacts.capacity)
+        return self.lanes
 
 
 _free: dict[Capacities, list[BufferSet]] = {}

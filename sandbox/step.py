@@ -157,7 +157,7 @@ class Stepper:
                 if launch == "one":
                     step_kernels.solve_step_in_order(b, switches, awake, self.edits.dispatch)
                 else:
-                    crew = sc.team(plan.substeps, plan.biased, plan.relax, plan.ratio)
+                    crew = sc.team(b, plan.substeps, plan.biased, plan.relax, plan.ratio)
                     step_kernels.solve_step_shared(b, switches, *crew, awake, self.edits.dispatch)
         else:
             yield from self._solve_in_launches(c, b, awake, plan, h, launch, fused, watch, track, step_count, pause)

@@ -214,7 +214,7 @@ class Schedule:
         if launch == "one":
             substep.iterate_in_order(*self._loop_args(loop), loop.iterations, loop.sweeps, loop.relax)
         elif launch == "shared":
-            crew, members = self.team(loop.iterations, loop.sweeps, loop.relax, loop.ratio)
+            crew, members = self.team(loop.buf, loop.iterations, loop.sweeps, loop.relax, loop.ratio)
             substep.iterate_shared(crew, *self._loop_args(loop), loop.iterations, loop.sweeps, loop.relax, members)
         elif launch == "per-substep":
             fold = self.folds_warm_start(loop.warm)
@@ -226,10 +226,11 @@ class Schedule:
         else:
             raise ValueError(f"iterate: {launch!r} is not a fused launch")
 
-    def team(self, substeps: int, biased: int, relax: int, ratio: int = 0) -> tuple:
+    def team(self, buf, substeps: int, biased: int, relax: int, ratio: int = 0) -> tuple:
         """(the thread team whose counters cover a shared iteration loop of ``substeps``
         substeps with ``biased`` (and up to ``ratio`` more) and ``relax`` sweeps each, its member
-        count)."""
+        count), with the lane rows its sweeps read allocated in ``buf`` (BufferSet.lane_rows)."""
+        buf.lane_rows()
         phases = substep.shared_phase_bound(self.visit, substeps, biased, relax, ratio)
         members = team.cpu_threads()
         return team.team_for(phases, members), members
