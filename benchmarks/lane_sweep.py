@@ -42,6 +42,7 @@ def main() -> None:
     world = World(Scene.load(resolve_scene(a.scene)), solver=a.solver, iterations=a.iterations)
     world.step(a.settle)
     b = world.buf
+    lanes = b.lane_rows()  # allocated by the team's first step; here too when --settle 0 ran none
     friction = contact_switch(world.compiled_effects)
 
     @ti.kernel
@@ -50,7 +51,7 @@ def main() -> None:
         for _ in range(repeats):
             n = b.blocks.block_count[None]
             for g in range((n + LANES - 1) // LANES):
-                copy_group(b.lanes, b.blocks, b.rows, b.contacts, g, n)
+                copy_group(lanes, b.blocks, b.rows, b.contacts, g, n)
 
     @ti.kernel
     def by_point(repeats: ti.i32, mode: ti.template()):
@@ -65,7 +66,7 @@ def main() -> None:
         for _ in range(repeats):
             n = b.blocks.block_count[None]
             for g in range((n + LANES - 1) // LANES):
-                sweep_point_lanes(b.lanes, b.blocks, b.rows, b.contacts, b.bodies, biased, friction, 0, g, n)
+                sweep_point_lanes(lanes, b.blocks, b.rows, b.contacts, b.bodies, biased, friction, 0, g, n)
 
     @ti.kernel
     def gather(repeats: ti.i32):
