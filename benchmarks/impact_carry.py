@@ -1,8 +1,7 @@
 """What the impact rows' clamped warm start costs: the same scene stepped by two worlds in one
 process, interleaved in blocks of 10 steps, one as shipped and one whose
-``restitution_threshold`` is so high that no row is an impact (impact_carry.is_impact), so every step
-folds its warm start into the last relax sweep as before the clamp (solvers/substep.py,
-``folds_this_step``).
+``restitution_threshold`` is so high that no row is an impact (impact_carry.is_impact), so no step
+lists a carry to clamp after its folded warm starts (mass_splitting.clamp_folded_carries).
 
     python benchmarks/impact_carry.py [--scene pile_1000] [--solver mass-splitting]
                                       [--iterations 15] [--windows 1,60,150,300,450]

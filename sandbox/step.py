@@ -260,16 +260,16 @@ class Stepper:
     def _iterate_by_stage(self, schedule: Schedule, loop: Loop, record_residuals: bool, pause: bool):
         """The iteration loop a launch per phase, each in its stage. With warm starting, gravity
         rides on the warm-start pass ("iterate"), and for the Jacobi family both ride on the
-        previous substep's last relax sweep, except in a step with an impact row. A generator:
+        previous substep's last relax sweep (its impact rows' carries clamped after it). A generator:
         with ``pause`` it yields a ``Sweep`` after every sweep."""
         from .integrate import integrate_positions, integrate_velocities
+        from .solvers.mass_splitting import clamp_folded_carries_kernel
         from .solvers.rows import BIASED, RELAX
         from .solvers.step_impulses import add_step_impulses
 
         b, p, k, sweeps, relax, awake = loop.buf, self.profiler, loop.iterations, loop.sweeps, loop.relax, loop.awake
         extra = int(b.blocks.light_sweeps[None]) if loop.ratio else 0  # light bodies' (Settings.ratio_sweeps)
-        # a step with an impact row warm starts every substep in its own pass (impact_carry.folds_this_step)
-        fold = schedule.folds_warm_start(loop.warm) and not int(b.rows.impacts[None])
+        fold = schedule.folds_warm_start(loop.warm)
         # the Jacobi family with Settings.relax_push_speed on: a fast push earns a second relax sweep,
         # which the host learns from a flag read per substep
         watch_push = schedule.visit == BLOCKS and relax_push_limit(self.edits.settings) > 0.0
@@ -305,6 +305,8 @@ class Stepper:
                     schedule.sweep(b, awake, RELAX, loop.friction, then_warm, loop.gravity, loop.h, i)
                     if pause:
                         yield Sweep(i, k, "relax", j, n_relax, bool(then_warm))
+                if fold and i < k - 1:  # the impact rows' carries, clamped after the carrying sweep's merge
+                    clamp_folded_carries_kernel(b.rows, b.contacts, b.bodies, loop.friction)
             if loop.track:
                 add_step_impulses(b.rows, b.contacts)
 

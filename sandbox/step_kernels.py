@@ -26,7 +26,7 @@ from .integrate import check_bodies_loops, clear_error_flags
 from .manifold_cache import clear_cache_loops
 from .persistence import clear_history_loops, match_contact, store_contacts_loops
 from .sleep import rest_and_label_loops
-from .solvers.impact_carry import clear_impacts
+from .solvers.impact_carry import clear_impacts, list_carry_rows
 from .solvers.block_adjacency import build_adjacency_loops
 from .solvers.mass_splitting import update_support_loops
 from .solvers.rows import prepare_row, respond_row
@@ -66,6 +66,7 @@ def prepare_step_loops(b: ti.template(), blk: ti.template(), match_distance: ti.
     for q in range(b.contacts.count[None]):
         prepare_row(b.rows, b.contacts, b.bodies, q)
         match_contact(b.history, b.contacts, b.rows, match_distance, warm_factor, q)
+    list_carry_rows(b.rows, b.contacts)
     build_adjacency_loops(blk, b.contacts, b.bodies, b.rows, kind, mode, omega)
     ti.loop_config(serialize=ti.static(dispatch.serial))
     for q in range(b.contacts.count[None]):

@@ -267,10 +267,11 @@ def test_an_inelastic_tall_box_does_not_bounce(solver):
     assert before > 3.0 and after < 0.05 * before, f"impact {before:.3f} m/s, rebound {after:.3f}"
 
 
-def test_only_an_impact_unfolds_the_warm_start():
-    """A step warm starts every substep in its own pass only when a row closes faster than the
-    restitution threshold and touches within the step (impact_carry.is_impact): a resting stack never
-    does, so it keeps the folded loop; a cube dropped from 2 m does in the steps it lands."""
+def test_only_an_impact_clamps_the_folded_warm_start():
+    """A step clamps its folded carries (mass_splitting.clamp_folded_carries) only when a row closes
+    faster than the restitution threshold and touches within the step (impact_carry.is_impact): a
+    resting stack never does, so it keeps the plain folded loop; a cube dropped from 2 m does in the
+    step it lands."""
     stack = World(Scene.from_dict(scene_dict([box_body([0, 0, 0.5 + k]) for k in range(3)])),
                   solver="mass-splitting", iterations=8, arch=TEST_ARCH)
     resting = []

@@ -158,8 +158,8 @@ def test_iteration_launches_give_the_same_bits(solver):
     profiled) is the same computation: no float atomics and fixed-order gathers, so the
     states agree bit for bit (solvers/substep.py). "one" and "shared" here also run the step's
     set-up, solve and store as one launch (step_kernels.solve_step_in_order, solve_step_shared:
-    no bounce in this pile). The landing pile has impact rows, whose steps warm start every
-    substep in its own pass (substep.folds_this_step), and resting steps that fold it."""
+    no bounce in this pile). The landing pile has impact rows, whose steps clamp their folded
+    carries after each carrying sweep (mass_splitting.clamp_folded_carries), and resting steps."""
     from sandbox import Settings
 
     scene = Scene.from_dict(_pile_300())
@@ -210,8 +210,8 @@ def test_a_fast_push_relaxes_twice_in_every_launch(solver):
                                                 ("mass-splitting", 2), ("pgs", 2)])
 def test_an_impact_and_a_fast_push_in_every_launch(solver, iterations):
     """Both of a substep's extra passes at once: a box thrown at 8 m/s onto the overlapping boxes
-    of the test above lands in an impact step (every substep warm starts in its own pass,
-    substep.folds_this_step) while their push-out earns second relax sweeps; the team-shared
+    of the test above lands in an impact step (its carries clamped after every carrying sweep,
+    mass_splitting.clamp_folded_carries) while their push-out earns second relax sweeps; the team-shared
     loop walks its most phases there. Every launch mode gives the same bits, also at 2
     iterations, where a substep runs 4 sweeps of each kind (Settings.step_sweeps; serial PGS's
     per-substep launch unrolls them too)."""

@@ -6,13 +6,23 @@ stopped an impact in one substep is the whole impact: applied again it throws th
 their impact speed, and only a Gauss-Seidel sweep takes it back in time, so under the split
 schedules an inelastic cube left the ground at 20 % of its impact speed (docs/method-notes.md,
 "An inelastic impact bounced"). Resting and stacked rows are not impacts and keep the whole warm
-start; a step with no impact row folds the Jacobi family's warm start into the last relax sweep
-as before (``folds_this_step``), bit for bit.
+start.
+
+Where the warm start has its own pass (a step's first substep; every substep of the PGS
+solvers) a row's carry is clamped before it is applied (``clamp_impact_carry``). The Jacobi
+family's later substeps take their warm start from the previous substep's last relax sweep
+(substep.folds_warm_start), on each block's own velocity copies, where no merged velocity is
+known yet; there the carry is applied whole, and in a step with impact rows a short serial pass
+after that sweep's gather takes back what each listed row (``list_carry_rows``) carried beyond
+its stop (mass_splitting.clamp_folded_carries). A step without an impact row lists none, so its
+bits are those of the plain fold. (Until 2026-12-02 such a step warm started every substep in a
+pass of its own over all blocks instead: 2.2x the substep's cost on a landing pile,
+docs/bench.md "Fourteenth pass".)
 """
 
 import taichi as ti
 
-from ..math3d import cross, dot
+from ..math3d import cross, dot, vec3
 from .contact_spring import GRAVITY_REACH, INV_H, RESTITUTION_THRESHOLD, STEP_DT, params_gravity
 
 
@@ -35,18 +45,31 @@ def clear_impacts(rows: ti.template()):
 @ti.func
 def note_impact(rows: ti.template(), c: ti.template(), q: ti.i32):
     """While point q is prepared (its approach just measured): an impact row flags the step, so
-    its later substeps warm start in their own pass (``folds_this_step``)."""
+    that its carry rows are listed (``list_carry_rows``)."""
     if is_impact(rows, c, q):
         rows.impacts[None] = 1  # every impact row stores the same 1; clear_impacts cleared it
 
 
 @ti.func
-def folds_this_step(rows: ti.template()) -> ti.i32:
-    """1: a folding schedule's later substeps take gravity and warm start from the previous
-    relax sweep (substep.folds_warm_start); 0 in a step with an impact row: its carried impulse is
-    clamped against its bodies' merged velocities (``clamp_impact_carry``), which a block of the
-    relax sweep, on its own copies, never sees, so the warm start runs as its own pass."""
-    return 1 - rows.impacts[None]
+def clamps_carry(rows: ti.template(), c: ti.template(), q: ti.i32) -> ti.i32:
+    """1: point q's carried impulse is capped at its stop (``clamp_impact_carry``): an impact,
+    or a row already separating faster than the threshold when the step began (a bounce
+    leaving, which needs no impulse)."""
+    return ti.cast(is_impact(rows, c, q) or rows.approach[q] > rows.params[RESTITUTION_THRESHOLD], ti.i32)
+
+
+@ti.func
+def list_carry_rows(rows: ti.template(), c: ti.template()):
+    """After the rows are prepared (a kernel's top level, after the loop that ran
+    ``note_impact``): the rows a folded warm start clamps afterwards, in point order (a serial
+    loop: the pass that reads them is a Gauss-Seidel one, so their order is part of the bits).
+    None in a step without an impact row, whose folded substeps clamp nothing, as before."""
+    rows.carry_count[None] = 0
+    ti.loop_config(serialize=True)
+    for q in range(c.count[None] * rows.impacts[None]):
+        if clamps_carry(rows, c, q):
+            rows.carry_rows[rows.carry_count[None]] = q
+            rows.carry_count[None] += 1
 
 
 @ti.func
@@ -68,7 +91,7 @@ def clamp_impact_carry(rows: ti.template(), c: ti.template(), bodies: ti.templat
     leaving bodies again, and a Jacobi world whose busiest body split its factor to 44 took back
     only ~4 / 44 of it a sweep: an e = 1 cube left 19 % too fast (docs/method-notes.md)."""
     lam = rows.lam[q]
-    if lam[0] > 0.0 and (is_impact(rows, c, q) or rows.approach[q] > rows.params[RESTITUTION_THRESHOLD]):
+    if lam[0] > 0.0 and clamps_carry(rows, c, q):
         a = c.body_a[q]
         b = c.body_b[q]
         g_h = params_gravity(rows) / rows.params[INV_H]
@@ -78,8 +101,21 @@ def clamp_impact_carry(rows: ti.template(), c: ti.template(), bodies: ti.templat
             va += g_h
         if bodies.inv_mass[b] > 0.0:
             vb += g_h
-        stop = ti.max(-dot(vb - va, c.normal[q]), 0.0) / (rows.k_a[q][0] + rows.k_b[q][0])
+        stop = stopping_impulse(rows, c, q, va, vb)
         if stop < lam[0]:
-            ratio = stop / lam[0]
-            rows.lam[q] = lam * ratio
-            rows.lam_roll[q] *= ratio
+            scale_carry(rows, q, stop / lam[0])
+
+
+@ti.func
+def stopping_impulse(rows: ti.template(), c: ti.template(), q: ti.i32, va: vec3, vb: vec3) -> ti.f32:
+    """[N s] The normal impulse that stops point q's approach at the points' velocities va, vb
+    (full masses), zero for a point already separating."""
+    return ti.max(-dot(vb - va, c.normal[q]), 0.0) / (rows.k_a[q][0] + rows.k_b[q][0])
+
+
+@ti.func
+def scale_carry(rows: ti.template(), q: ti.i32, ratio: ti.f32):
+    """Point q's carried impulses times ``ratio`` (< 1): normal, friction and rolling alike, so
+    they stay in their cones."""
+    rows.lam[q] = rows.lam[q] * ratio
+    rows.lam_roll[q] *= ratio

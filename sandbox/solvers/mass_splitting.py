@@ -47,9 +47,8 @@ multiplies the velocity change written to the slot:
   the impulses are applied once more to the block's velocity copies with the scaled
   responses, which the weight turns back into full-mass changes (scale x weight = 1 in
   both modes); one pass over the blocks fewer, and no per-point trip through the body's
-  inertia. Not in a step with an impact row: its carried impulse is clamped against the
-  merged velocities (impact_carry.clamp_impact_carry), so every substep warm starts in its own pass
-  (impact_carry.folds_this_step).
+  inertia. In a step with an impact row, what an impact carried beyond its stop is then taken
+  back after the merge (``clamp_folded_carries``, impact_carry.py).
 * light bodies: a body resting against one ``Settings.ratio_mass`` times heavier has its blocks
   swept ``Settings.ratio_sweeps`` more times per substep (light_bodies.py says why).
 """
@@ -61,7 +60,7 @@ from ..awake import body_id, body_total
 from ..math3d import cross, mat_vec
 from .block_adjacency import PER_POINT, block_range, slot_change, store_slots
 from .contact_spring import GRAVITY_REACH, INV_H, LOAD_BLEND, PRELOAD_LAG, RELAX_PUSH, STEP_DT, support_push
-from .impact_carry import clamp_impact_carry
+from .impact_carry import clamp_impact_carry, scale_carry, stopping_impulse
 from .rolling import rolling_impulse
 from .normal_target import pushes_fast
 from .rows import BIASED, ROLLING, point_impulse, solve_point
@@ -203,6 +202,52 @@ def warm_block(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: 
 
 
 @ti.func
+def clamp_folded_carry(rows: ti.template(), c: ti.template(), bodies: ti.template(), friction: ti.template(),
+                       q: ti.i32):
+    """Listed point q (impact_carry.list_carry_rows), after a relax sweep carried the next
+    substep's warm start whole: what it carried beyond the impulse that stops its approach, at
+    the merged velocities without its own carry (gravity and the other rows' carries in them),
+    taken back with full masses. The fold's carry is the full-mass one (scale x weight = 1),
+    so this is ``clamp_impact_carry`` moved after the merge, where a Gauss-Seidel pass can see
+    the velocities: the listed rows one after another, each seeing the ones before it."""
+    lam = rows.lam[q]
+    if lam[0] > 0.0:
+        a = c.body_a[q]
+        b = c.body_b[q]
+        dva, dwa, dvb, dwb = _warm_delta(rows, c, bodies, a, b, q, 1, friction)
+        va = bodies.lin_vel[a] - dva + cross(bodies.ang_vel[a] - dwa, rows.ra[q])
+        vb = bodies.lin_vel[b] - dvb + cross(bodies.ang_vel[b] - dwb, rows.rb[q])
+        stop = stopping_impulse(rows, c, q, va, vb)
+        if stop < lam[0]:
+            ratio = stop / lam[0]
+            scale_carry(rows, q, ratio)
+            back = ratio - 1.0
+            if bodies.inv_mass[a] > 0.0:
+                bodies.lin_vel[a] += back * dva
+                bodies.ang_vel[a] += back * dwa
+            if bodies.inv_mass[b] > 0.0:
+                bodies.lin_vel[b] += back * dvb
+                bodies.ang_vel[b] += back * dwb
+
+
+@ti.func
+def clamp_folded_carries(rows: ti.template(), c: ti.template(), bodies: ti.template(), friction: ti.template()):
+    """``clamp_folded_carry`` for every listed point in order, on the calling thread (none in a
+    step without an impact row)."""
+    for i in range(rows.carry_count[None]):
+        clamp_folded_carry(rows, c, bodies, friction, rows.carry_rows[i])
+
+
+@ti.kernel
+def clamp_folded_carries_kernel(rows: ti.template(), c: ti.template(), bodies: ti.template(),
+                                friction: ti.template()):
+    """``clamp_folded_carries`` as a launch of its own (the per-phase loop, step.py)."""
+    ti.loop_config(serialize=True)
+    for _ in range(1):
+        clamp_folded_carries(rows, c, bodies, friction)
+
+
+@ti.func
 def warm_start_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                       awake: ti.template(), kind: ti.template(), friction: ti.template(), gravity: vec3, h: ti.f32,
                       active: ti.i32):
@@ -253,8 +298,8 @@ def sweep_blocks(s: ti.template(), rows: ti.template(), c: ti.template(), bodies
                  h: ti.f32, substep: ti.i32, active: ti.i32 = 1):
     """One Jacobi sweep over all blocks from the same velocities, then the per-body merge.
 
-    ``then_warm`` (the last relax sweep of a substep that has a successor, in a step without an
-    impact row: impact_carry.folds_this_step): the block's
+    ``then_warm`` (the last relax sweep of a substep that has a successor; in a step with an
+    impact row ``clamp_folded_carries`` follows the merge): the block's
     impulses are final for this substep, so its slots also carry the next substep's warm
     start, and the gather adds the next substep's gravity: one block pass and two body
     passes fewer per substep than a separate gravity pass and warm-start pass. A biased

@@ -53,7 +53,7 @@ import taichi as ti
 from ..lanes import lane_capacity
 from ..math3d import cross, dot, mat_mul, mat_vec, plane_basis, quat_rotate_inv
 from .contact_spring import PARAM_COUNT, RESTITUTION_THRESHOLD, row_spring, supported_load
-from .impact_carry import clear_impacts, note_impact
+from .impact_carry import clear_impacts, list_carry_rows, note_impact
 from .normal_target import BIASED, RELAX, RESTITUTION, normal_target  # noqa: F401  (the sweep modes live there)
 from .rolling import respond_rolling, solve_rolling
 from .light_bodies import light_pair
@@ -103,6 +103,8 @@ class Rows:
         self.bounce_residual = ti.field(ti.f32, ())  # [m/s] largest bounce-row residual of the last sweep
         self.fast_push = ti.field(ti.i32, ())  # 1: a biased sweep of this substep pushed a row fast (pushes_fast)
         self.impacts = ti.field(ti.i32, ())  # 1: a row of this step is an impact (impact_carry.note_impact)
+        self.carry_rows = ti.field(ti.i32, c)  # the points whose folded carry is clamped (impact_carry.list_carry_rows)
+        self.carry_count = ti.field(ti.i32, ())
         self.residual = ti.field(ti.f32, c)  # squared LCP residual of the point's rows [(m/s)^2]
 
 
@@ -158,6 +160,7 @@ def prepare_rows_loops(rows: ti.template(), c: ti.template(), bodies: ti.templat
     clear_impacts(rows)
     for q in range(c.count[None]):
         prepare_row(rows, c, bodies, q)
+    list_carry_rows(rows, c)
 
 
 @ti.kernel

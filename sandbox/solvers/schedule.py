@@ -133,7 +133,7 @@ class Schedule:
     # ------------------------------------------------------------------ stage by stage
     def folds_warm_start(self, warm: bool) -> bool:
         """Gravity and warm start of a later substep ride on the previous relax sweep (in a step
-        without an impact row: impact_carry.folds_this_step)."""
+        with an impact row its carries are clamped after it: mass_splitting.clamp_folded_carries)."""
         return substep.folds_warm_start(self.visit, warm)
 
     def warm_start(self, buf, awake, friction: int, gravity, h: float) -> None:

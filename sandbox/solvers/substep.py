@@ -39,8 +39,8 @@ from ..awake import body_id, body_total
 from ..integrate import advance_pose, apply_gravity, gravity_loop, positions_loop
 from . import team as tm
 from .contact_spring import params_gravity
-from .impact_carry import folds_this_step
-from .mass_splitting import gather_body, sweep_block, sweep_blocks, sweep_light_blocks, warm_block, warm_start_blocks
+from .mass_splitting import (clamp_folded_carries, gather_body, sweep_block, sweep_blocks, sweep_light_blocks, warm_block,
+                             warm_start_blocks)
 from .point_lanes import lane_block_phase, lane_copy_phase, lanes_apply
 from .pgs import MAX_COLORS, colored_sweep_in_order, pgs_sweep, solve_manifold
 from .rows import BIASED, RELAX
@@ -70,8 +70,8 @@ def _start_substep(s: ti.template(), rows: ti.template(), c: ti.template(), bodi
                    awake: ti.template(), kind: ti.template(), warm: ti.template(), friction: ti.template(),
                    gravity: vec3, h: ti.f32, active: ti.i32):
     """Gravity and warm start of a substep (``active`` = 0 skips both: the Jacobi family's
-    later substeps get them from the previous relax sweep, mass_splitting.sweep_blocks, except
-    in a step with an impact row, folds_this_step)."""
+    later substeps get them from the previous relax sweep, mass_splitting.sweep_blocks, whose
+    impact rows' carries are clamped after its merge, mass_splitting.clamp_folded_carries)."""
     if ti.static(warm):
         warm_start_blocks(s, rows, c, bodies, awake, kind, friction, gravity, h, active)
     else:
@@ -112,7 +112,7 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
     for it in range(iterations):
         first = 1
         if ti.static(fold):
-            first = 1 if it == 0 else 1 - folds_this_step(rows)
+            first = 1 if it == 0 else 0
         _start_substep(s, rows, c, bodies, awake, kind, warm, friction, gravity, h, first)
         if ti.static(schedule == BLOCKS):
             rows.fast_push[None] = 0
@@ -128,8 +128,11 @@ def iterate_in_order_loops(b: ti.template(), kind: ti.template(), schedule: ti.t
         for sr in range(n_relax):
             then_warm = 0
             if ti.static(fold):
-                then_warm = folds_this_step(rows) if it < iterations - 1 and sr == n_relax - 1 else 0
+                then_warm = 1 if it < iterations - 1 and sr == n_relax - 1 else 0
             _sweep(schedule, s, rows, c, bodies, awake, col, kind, RELAX, friction, then_warm, gravity, h, it)
+        if ti.static(fold):
+            if it < iterations - 1:
+                clamp_folded_carries(rows, c, bodies, friction)
         if ti.static(track):
             add_step_impulses_loop(rows, c)
 
@@ -152,9 +155,9 @@ def substep_parallel(b: ti.template(), kind: ti.template(), schedule: ti.templat
     (Settings.ratio_sweeps) and a second relax sweep after a fast push (Settings.relax_push_speed;
     their loops run zero times otherwise), every phase's loops parallel, in one launch. ``first``:
     this substep does its own gravity and warm start; ``then_warm``: its last relax sweep does the
-    next one's (both 1 / 0 decided by ``Schedule.iterate`` with ``folds_warm_start``; a step with
-    an impact row overrides them to 1 / 0, folds_this_step, in substep_loops.py's loops; the PGS
-    solvers' sweeps ignore it). ``substep``: its index in the step (visit_order.visited_point)."""
+    next one's (both 1 / 0 decided by ``Schedule.iterate`` with ``folds_warm_start``; after a
+    carrying sweep the impact rows' carries are clamped, mass_splitting.clamp_folded_carries; the
+    PGS solvers' sweeps ignore it). ``substep``: its index in the step (visit_order.visited_point)."""
     ti.static_assert(schedule != PGS_COLORED, "pgs-colored launches once per colour")
     s, rows, c, bodies, col = b.blocks, b.rows, b.contacts, b.bodies, b.coloring
     if ti.static(schedule == BLOCKS):  # loops and nothing between them (substep_loops.py says why)
@@ -287,6 +290,21 @@ def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
 
 
 @ti.func
+def _carry_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, rows: ti.template(),
+                 c: ti.template(), bodies: ti.template(), friction: ti.template()) -> ti.i32:
+    """After a relax sweep that carried the next substep's warm start: the listed impact rows'
+    carries clamped (mass_splitting.clamp_folded_carries), one item that one member runs in
+    order, as a phase of none in a step without an impact row."""
+    n = ti.min(rows.carry_count[None], 1)
+    lo, hi, _ = tm.next_chunk(team, p, n, member, members, 0)
+    if lo < hi:
+        clamp_folded_carries(rows, c, bodies, friction)
+        tm.finish(team, p, 1)
+    tm.wait(team, p, n)
+    return p + 1
+
+
+@ti.func
 def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, c: ti.template(),
                  rows: ti.template()) -> ti.i32:
     """The substep's impulses added to the step's, point by point."""
@@ -339,8 +357,7 @@ def _lane_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
             biased = 1 if k < sweeps else 0
             then_warm = 0
             if ti.static(fold):
-                then_warm = folds_this_step(rows) if biased == 0 and it < iterations - 1 and k - sweeps == n_relax - 1 \
-                    else 0
+                then_warm = 1 if biased == 0 and it < iterations - 1 and k - sweeps == n_relax - 1 else 0
             p = lane_block_phase(team, p, member, members, lr, s, rows, c, bodies, friction, biased, then_warm,
                                   fast_slot)
             dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
@@ -369,7 +386,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
     for it in range(iterations):
         first = 1
         if ti.static(fold):
-            first = 1 if it == 0 else 1 - folds_this_step(rows)  # the same for every member: set before the loop
+            first = 1 if it == 0 else 0
         if first:
             if ti.static(warm):
                 p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, True)
@@ -397,9 +414,12 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
             for sr in range(n_relax):
                 then_warm = 0
                 if ti.static(fold):
-                    then_warm = folds_this_step(rows) if it < iterations - 1 and sr == n_relax - 1 else 0
+                    then_warm = 1 if it < iterations - 1 and sr == n_relax - 1 else 0
                 p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
                                   RELAX, friction, then_warm, 0, gravity, h, it)
+        if ti.static(fold):
+            if it < iterations - 1:
+                p = _carry_phase(team, p, member, members, rows, c, bodies, friction)
         if ti.static(track):
             p = _point_phase(team, p, member, members, c, rows)
 

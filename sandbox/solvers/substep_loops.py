@@ -21,8 +21,7 @@ from ..awake import body_id, body_total
 from ..backend import capacity_ranges
 from ..integrate import advance_pose, apply_gravity
 from .contact_spring import params_gravity
-from .impact_carry import folds_this_step
-from .mass_splitting import gather_body, sweep_block, warm_block
+from .mass_splitting import clamp_folded_carries, gather_body, sweep_block, warm_block
 from .rows import BIASED, RELAX
 from .step_impulses import add_step_impulse
 
@@ -41,32 +40,12 @@ def _upto(count: ti.template(), capacity: ti.template(), at_least_one: ti.templa
 
 
 @ti.func
-def _warm_here(rows: ti.template(), first: ti.template(), fold: ti.template()) -> ti.i32:
-    """1: this substep does its own gravity and warm start (``first``, or any substep of a step
-    with an impact row: impact_carry.folds_this_step)."""
-    here = first
-    if ti.static(fold):
-        here = ti.max(first, 1 - folds_this_step(rows))
-    return here
-
-
-@ti.func
-def _warm_next(rows: ti.template(), then_warm: ti.template(), fold: ti.template()) -> ti.i32:
-    """1: this substep's last relax sweep carries the next one's gravity and warm start (never
-    in a step with an impact row)."""
-    nxt = then_warm
-    if ti.static(fold):
-        nxt = then_warm * folds_this_step(rows)
-    return nxt
-
-
-@ti.func
-def _carry_after(rows: ti.template(), then_warm: ti.template(), fold: ti.template(), last: ti.template()) -> ti.i32:
+def _carry_after(rows: ti.template(), then_warm: ti.template(), last: ti.template()) -> ti.i32:
     """1: this relax sweep carries the next substep's gravity and warm start (the last of the
     substep's relax sweeps, without a fast push: that earns one more, which carries it instead)."""
     carry = 0
     if ti.static(last):
-        carry = _warm_next(rows, then_warm, fold) * (1 - rows.fast_push[None])
+        carry = then_warm * (1 - rows.fast_push[None])
     return carry
 
 
@@ -89,12 +68,12 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
     advance."""
     if ti.static(warm):
         for k in range(_upto(s.block_count[None], s.block_capacity)):
-            if k < s.block_count[None] * _warm_here(rows, first, fold):
+            if k < s.block_count[None] * first:
                 warm_block(s, rows, c, bodies, kind, friction, k)
     for k in range(_upto(body_total(bodies, awake), bodies.capacity, at_least_one=True)):
         if k == 0:
             rows.fast_push[None] = 0  # no block of the warm start reads it
-        if k < body_total(bodies, awake) * _warm_here(rows, first, fold):
+        if k < body_total(bodies, awake) * first:
             if ti.static(warm):
                 gather_body(s, bodies, params_gravity(rows) * h, body_id(awake, k))
             else:
@@ -129,18 +108,21 @@ def jacobi_substep_loops(s: ti.template(), rows: ti.template(), c: ti.template()
         for k in range(_upto(s.block_count[None], s.block_capacity)):
             if k < s.block_count[None]:
                 sweep_block(s, rows, c, bodies, kind, RELAX, friction,
-                            _carry_after(rows, then_warm, fold, sweep == relax - 1), k, substep)
+                            _carry_after(rows, then_warm, sweep == relax - 1), k, substep)
         for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
             if k < body_total(bodies, awake):
-                carry = _carry_after(rows, then_warm, fold, sweep == relax - 1)
+                carry = _carry_after(rows, then_warm, sweep == relax - 1)
                 gather_body(s, bodies, params_gravity(rows) * h * ti.cast(carry, ti.f32), body_id(awake, k))
     for k in range(_upto(s.block_count[None], s.block_capacity)):
         if k < s.block_count[None] * rows.fast_push[None]:
-            sweep_block(s, rows, c, bodies, kind, RELAX, friction, _warm_next(rows, then_warm, fold), k, substep)
+            sweep_block(s, rows, c, bodies, kind, RELAX, friction, then_warm, k, substep)
     for k in range(_upto(body_total(bodies, awake), bodies.capacity)):
         if k < body_total(bodies, awake) * rows.fast_push[None]:
-            carry = _warm_next(rows, then_warm, fold)
-            gather_body(s, bodies, params_gravity(rows) * h * ti.cast(carry, ti.f32), body_id(awake, k))
+            gather_body(s, bodies, params_gravity(rows) * h * ti.cast(then_warm, ti.f32), body_id(awake, k))
+    if ti.static(fold):  # the impact rows' carries clamped after the carrying sweep's merge, in order
+        for _ in range(1):
+            if then_warm:
+                clamp_folded_carries(rows, c, bodies, friction)
     if ti.static(track):
         for q in range(_upto(c.count[None], c.capacity)):
             if q < c.count[None]:
