@@ -48,7 +48,8 @@ WRAPPED = {
     "sandbox.integrate": ["check_bodies"],
     "sandbox.solvers.rows": ["prepare_rows", "prepare_response"],
     "sandbox.solvers.mass_splitting": ["build_adjacency"],
-    "sandbox.solvers.substep": ["iterate_in_order", "iterate_shared"],
+    "sandbox.solvers.substep": ["iterate_in_order"],
+    "sandbox.solvers.team_loop": ["iterate_shared"],
 }
 
 

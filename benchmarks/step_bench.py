@@ -30,7 +30,8 @@ import taichi as ti
 from sandbox import SOLVERS, Scene, Settings, World
 from sandbox.scene.library import resolve_scene
 
-ITERATION_KERNELS = {"sandbox.solvers.substep": ("iterate_shared", "iterate_in_order", "substep_parallel"),
+ITERATION_KERNELS = {"sandbox.solvers.substep": ("iterate_in_order", "substep_parallel"),
+                     "sandbox.solvers.team_loop": ("iterate_shared",),
                      "sandbox.step_kernels": ("solve_step_in_order", "solve_step_shared")}
 _loop_seconds = [0.0]
 

@@ -30,7 +30,8 @@ from .solvers.impact_carry import clear_impacts, list_carry_rows
 from .solvers.block_adjacency import build_adjacency_loops
 from .solvers.mass_splitting import update_support_loops
 from .solvers.rows import prepare_row, respond_row
-from .solvers.substep import iterate_in_order_loops, iterate_shared_loops
+from .solvers.substep import iterate_in_order_loops
+from .solvers.team_loop import iterate_shared_loops
 from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, OVERLAP_DEPTH, RELAX_SWEEPS, RELAXATION, REUSE_D2,
                            REUSE_SIN, SLEEP_ANGULAR, SLEEP_LINEAR, SLEEP_TIME, SLOP, STEP, SUBSTEP, SUBSTEPS,
                            WARM_FACTOR)
@@ -153,7 +154,7 @@ def solve_step_in_order(b: ti.template(), sw: ti.template(), awake: ti.template(
 def solve_step_shared(b: ti.template(), sw: ti.template(), team: ti.template(), members: ti.i32,
                       awake: ti.template(), dispatch: ti.template()):
     """``solve_step_in_order`` for a world whose iteration loop the CPU threads share
-    (substep.iterate_shared): ``prepare_step``'s parallel loops, the team's loop and
+    (team_loop.iterate_shared): ``prepare_step``'s parallel loops, the team's loop and
     ``finish_step``'s parallel loops, one after another as the three launches ran them, so the
     same bits, one launch (each ~0.1-0.3 ms of Python). ``team``, ``members``: Schedule.team."""
     f, n = ti.static(b.scalars.f, b.scalars.i)

@@ -5,7 +5,7 @@
 the points of a sweep. Written point by point (mass_splitting.sweep_block), LLVM runs them one
 point at a time; written as one expression over eight consecutive points' values, it runs each
 as one 8-wide instruction, provided the eight values come from one field element (lanes.py).
-So the team (substep.iterate_shared) first copies the rows a sweep reads into ``LaneRows``, in
+So the team (team_loop.iterate_shared) first copies the rows a sweep reads into ``LaneRows``, in
 groups of eight points (once a step: they change only between steps; ``lane_copy_phase``), and every
 sweep of per-point blocks then goes group by group (``lane_block_phase``), its slots stored in groups too
 (block_adjacency.store_slots). What differs from point to point (the normal row's target, a

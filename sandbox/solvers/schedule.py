@@ -9,7 +9,7 @@ coloured, and which launches of the iteration loop (``substep.py``) the schedule
 The kernels' long argument lists are written once, from a ``Loop`` (the buffers and
 compile-time switches of one step's iteration loop).
 
-Kernels are looked up on their modules at every call (``substep.iterate_shared``, not
+Kernels are looked up on their modules at every call (``team_loop.iterate_shared``, not
 a name imported once), so the benchmarks can wrap them with timers.
 """
 
@@ -21,7 +21,7 @@ import taichi as ti
 
 from ..formulation import PAPER, sweep_plan
 from ..settings import MAX_STEP_SWEEPS
-from . import SOLVERS, block_adjacency, mass_splitting, pgs, step_impulses, substep, team
+from . import SOLVERS, block_adjacency, mass_splitting, pgs, step_impulses, substep, team, team_loop
 from . import rows as contact_rows
 
 _VISIT = {"serial": substep.PGS, "colored": substep.PGS_COLORED, "blocks": substep.BLOCKS}
@@ -215,7 +215,7 @@ class Schedule:
             substep.iterate_in_order(*self._loop_args(loop), loop.iterations, loop.sweeps, loop.relax)
         elif launch == "shared":
             crew, members = self.team(loop.buf, loop.iterations, loop.sweeps, loop.relax, loop.ratio)
-            substep.iterate_shared(crew, *self._loop_args(loop), loop.iterations, loop.sweeps, loop.relax, members)
+            team_loop.iterate_shared(crew, *self._loop_args(loop), loop.iterations, loop.sweeps, loop.relax, members)
         elif launch == "per-substep":
             fold = self.folds_warm_start(loop.warm)
             k = loop.iterations
@@ -231,7 +231,7 @@ class Schedule:
         substeps with ``biased`` (and up to ``ratio`` more) and ``relax`` sweeps each, its member
         count), with the lane rows its sweeps read allocated in ``buf`` (BufferSet.lane_rows)."""
         buf.lane_rows()
-        phases = substep.shared_phase_bound(self.visit, substeps, biased, relax, ratio)
+        phases = team_loop.shared_phase_bound(self.visit, substeps, biased, relax, ratio)
         members = team.cpu_threads()
         return team.team_for(phases, members), members
 

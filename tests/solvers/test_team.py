@@ -3,7 +3,7 @@
 Every phase's item k reads items k - 1 and k + 1 of the previous phase, so a member that
 started a phase before the last one was finished would read a stale value; integers make
 the expected result exact. Members claim chunks of each phase (``next_chunk``), report
-them done (``finish``) and wait for the phase (``wait``), as ``substep.iterate_shared``
+them done (``finish``) and wait for the phase (``wait``), as ``team_loop.iterate_shared``
 does. A team of one, of two (Taichi's threads here) and of three (more members than
 threads: one starts only after another has run every phase) must give the bits of the
 loop run in order, and do every item exactly once.
