@@ -2,7 +2,7 @@
 
     python benchmarks/kernel_times.py [--scene pile_1000] [--solver mass-splitting] [--iterations 15]
                                       [--settle 300] [--steps 30] [--launch auto] [--arch cpu]
-                                      [--tasks]
+                                      [--pair-reuse-margin M] [--tasks]
 
 Each kernel that ``World.step`` launches (the fused set-up kernels of step_kernels.py,
 the iteration loop, and the per-stage kernels where they still run) is wrapped with a
@@ -65,6 +65,7 @@ def main() -> None:
     ap.add_argument("--launch", default="auto", help="Settings.iteration_launch")
     ap.add_argument("--reuse-distance", type=float, default=None,
                     help="Settings.manifold_reuse_distance [m] (0: every pair through SAT and clipping)")
+    ap.add_argument("--pair-reuse-margin", type=float, default=None, help="Settings.pair_reuse_margin [m]")
     ap.add_argument("--arch", default="cpu", choices=("cpu", "cuda"))
     ap.add_argument("--tasks", action="store_true", help="Taichi's kernel profiler: time of each offloaded task")
     a = ap.parse_args()
@@ -104,11 +105,14 @@ def main() -> None:
     settings = Settings(iteration_launch=a.launch)
     if a.reuse_distance is not None:
         settings = settings.replace(manifold_reuse_distance=a.reuse_distance)
+    if a.pair_reuse_margin is not None:
+        settings = settings.replace(pair_reuse_margin=a.pair_reuse_margin)
     world = World(Scene.load(resolve_scene(a.scene)), solver=a.solver, iterations=a.iterations, arch=a.arch,
                   settings=settings)
     world.step(a.settle)
     b = world.buf
-    print(f"{a.scene} {a.solver} {a.iterations} iterations, after {a.settle} steps: pairs {b.bp.pair_total[None]}, "
+    print(f"{a.scene} {a.solver} {a.iterations} iterations, after {a.settle} steps: pairs {b.bp.pair_total[None]} "
+          f"({b.bp.searched[None]} of {b.shapes.dynamic_count[None]} shapes searched), "
           f"contact points {b.contacts.count[None]}, manifolds {b.contacts.manifold_count[None]}")
     if a.tasks:
         ti.profiler.clear_kernel_profiler_info()

@@ -9,11 +9,23 @@ by shape id so that the order never depends on thread timing). Static shapes
 Planes are tested against every dynamic shape (there are a handful).
 
 Pairs are enumerated per dynamic shape ``i`` (partners ``j > i`` in the dynamic
-grid, then static shapes, then planes) in two passes, count then write, so each
-shape's pairs are contiguous and ordered the same way on every run. A pair
-seen through several cells is kept only in the cell holding the minimum corner
-of the two AABBs' intersection (no duplicates, no hash set). Planes are encoded
-as partner ``-1 - plane_index``.
+grid, static shapes and planes) in two passes, count then write, so each shape's
+pairs are contiguous; each shape's partners are sorted by id (planes, encoded as
+partner ``-1 - plane_index``, first), an order that depends only on which pairs there
+are, not on the grid's cells. A pair seen through several cells is kept only in the
+cell holding the minimum corner of the two AABBs' intersection (no duplicates, no
+hash set).
+
+Pair reuse (Box2D's and Rapier's enlarged bounds): a dynamic shape enters the grid with its
+bounds grown by ``Settings.pair_reuse_margin`` (``aabb_min`` / ``aabb_max`` hold these
+enlarged bounds), refitted only when its bounds for the step leave them (or they have
+grown twice as loose as fitted). Pairs are the overlaps of enlarged bounds, so a shape whose
+enlarged bounds and whose partners' did not change has the same partners as last step: it
+copies its old list instead of searching the grid. A shape searches again when it was
+refitted, when an old partner was, or when a refitted shape of higher id now overlaps it
+(``find_pairs_loops``); every shape searches when ``listed`` is 0 (a new world, a changed
+awake set) or last step's list overflowed. The extra pairs are farther apart than any margin: the narrowphase finds
+no points for them. Since the order is by id, the list is the one a full search gives.
 """
 
 
@@ -57,7 +69,7 @@ def cell_hash(c: ivec3, mask: ti.i32) -> ti.i32:
 @ti.data_oriented
 class Broadphase:
     def __init__(self, shape_capacity: int, entry_capacity: int, pair_capacity: int, static_hash_size: int,
-                 static_entry_capacity: int):
+                 static_entry_capacity: int, reuses_pairs: bool = True):
         sc = max(1, shape_capacity)
         self.entry_capacity = max(16, entry_capacity)
         self.pair_capacity = max(16, pair_capacity)
@@ -87,6 +99,16 @@ class Broadphase:
         self.pair_a = ti.field(ti.i32, self.pair_capacity)
         self.pair_b = ti.field(ti.i32, self.pair_capacity)
         self.scratch_b = ti.field(ti.i32, sc * PAIRS_PER_SHAPE)  # partners seen by the counting pass
+        # pair reuse (module docstring); a grid that only lists shapes (sleep.py's) has none
+        self.reuses_pairs = reuses_pairs
+        self.refitted = ti.field(ti.i32, sc)  # by shape id: enlarged bounds fitted again this step
+        self.searches = ti.field(ti.i32, sc)  # by shape id: its partners are searched this step
+        # 1: last step's list holds every shape's pairs; 0 (a new buffer or world, a new awake set):
+        # every shape searches
+        self.listed = ti.field(ti.i32, ())
+        self.searched = ti.field(ti.i32, ())  # shapes that searched, last pair search
+        self.old_b = ti.field(ti.i32, self.pair_capacity if reuses_pairs else 1)  # last step's partners
+        self.old_start = ti.field(ti.i32, sc + 1 if reuses_pairs else 1)  # and each slot's first
         self.scanner = Scanner(max(sc, self.hash_size) + 1)
         # static grid, built once per world on the host
         self.static_cell_size = ti.field(ti.f32, ())
@@ -192,11 +214,13 @@ def _fits_grid(lo: vec3, hi: vec3, cell: ti.f32) -> ti.i32:
 
 @ti.func
 def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
-                             dt: ti.f32, speculative: ti.template(), err: ti.template(), awake: ti.template(),
-                             dispatch: ti.template()):
+                             reuse_margin: ti.f32, dt: ti.f32, speculative: ti.template(), err: ti.template(),
+                             awake: ti.template(), dispatch: ti.template()):
     """``dt`` [s] is the step: each AABB also covers where its shape can get to during the step
     (|v| dt + |w| r dt), so fast bodies find their partners and get speculative contacts
     instead of tunnelling. Bounds too large for the grids raise ERR_BOUNDS (MAX_SPAN_CELLS).
+    With pair reuse the grid holds the enlarged bounds (``reuse_margin`` [m] more, module
+    docstring), refitted where the step's bounds left them.
     ``awake`` (awake.py): the grid holds every dynamic shape, or the listed ones (a sleeping
     world's awake shapes; sleep.py builds the grid of its sleeping shapes with this too)."""
     n = shape_total(shapes, awake)
@@ -211,8 +235,27 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
             centre = 0.5 * (lo + hi)
             lo = centre
             hi = centre
-        bp.aabb_min[i] = lo
-        bp.aabb_max[i] = hi
+        if ti.static(bp.reuses_pairs):
+            grow = ti.min(reuse_margin, 0.25 * shapes.bound[i])
+            fat_lo, fat_hi = bp.aabb_min[i], bp.aabb_max[i]
+            inside = (fat_lo <= lo).all() and (hi <= fat_hi).all()
+            # bounds left far looser than fitted (a fast body that slowed) are refitted too
+            loose = ((fat_hi - fat_lo) - (hi - lo) > 4.0 * grow).any()
+            refit = 0
+            if bp.listed[None] == 0 or not inside or loose:
+                refit = 1
+            bp.refitted[i] = refit
+            if refit:
+                lo -= grow
+                hi += grow
+                bp.aabb_min[i] = lo
+                bp.aabb_max[i] = hi
+            else:
+                lo = fat_lo
+                hi = fat_hi
+        else:
+            bp.aabb_min[i] = lo
+            bp.aabb_max[i] = hi
         a, b = _cell_range(lo, hi, cell)
         d = b - a + 1
         bp.cell_count[k] = d[0] * d[1] * d[2]
@@ -257,9 +300,9 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
 
 @ti.kernel
 def build_dynamic_grid(bp: ti.template(), shapes: ti.template(), bodies: ti.template(), margin: ti.f32,
-                       dt: ti.f32, speculative: ti.template(), err: ti.template(), awake: ti.template(),
-                       dispatch: ti.template()):
-    build_dynamic_grid_loops(bp, shapes, bodies, margin, dt, speculative, err, awake, dispatch)
+                       reuse_margin: ti.f32, dt: ti.f32, speculative: ti.template(), err: ti.template(),
+                       awake: ti.template(), dispatch: ti.template()):
+    build_dynamic_grid_loops(bp, shapes, bodies, margin, reuse_margin, dt, speculative, err, awake, dispatch)
 
 
 @ti.func
@@ -386,11 +429,64 @@ def _visit_pairs(bp: ti.template(), shapes: ti.template(), k: ti.i32, base: ti.i
 
 
 @ti.func
+def _mark_lower_partners(bp: ti.template(), shapes: ti.template(), i: ti.i32):
+    """Refitted shape i's partners of lower id search again: the pair is in their lists."""
+    lo, hi = bp.aabb_min[i], bp.aabb_max[i]
+    body_i = shapes.body[i]
+    a, b = _cell_range(lo, hi, bp.cell_size[None])
+    mask = bp.hash_size - 1
+    for x in range(a[0], b[0] + 1):
+        for y in range(a[1], b[1] + 1):
+            for z in range(a[2], b[2] + 1):
+                h = cell_hash(ivec3(x, y, z), mask)
+                for e in range(bp.bucket_start[h], bp.bucket_start[h + 1]):
+                    j = bp.sorted_shape[e]
+                    if j >= i:  # a bucket is sorted by shape id
+                        break
+                    if bp.sorted_body[e] != body_i:
+                        if (lo <= bp.sorted_hi[e]).all() and (bp.sorted_lo[e] <= hi).all():
+                            bp.searches[j] = 1
+
+
+@ti.func
+def _choose_searches(bp: ti.template(), shapes: ti.template(), awake: ti.template(), n: ti.i32):
+    """Keep last step's list in ``old_b`` / ``old_start`` and say which shapes search again
+    (``searches``, module docstring): all when ``listed`` is 0 or last step's list overflowed."""
+    stale = bp.listed[None] == 0 or bp.pair_total[None] > bp.pair_capacity
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for p in range(ti.min(bp.pair_total[None], bp.pair_capacity)):
+        bp.old_b[p] = bp.pair_b[p]
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(n + 1):
+        bp.old_start[k] = bp.pair_start[k]
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(n):
+        i = shape_id(shapes, awake, k)
+        search = 1 if stale or bp.refitted[i] != 0 else 0
+        if search == 0:
+            for e in range(bp.old_start[k], bp.old_start[k + 1]):
+                j = bp.old_b[e]
+                if j >= 0:
+                    if bp.refitted[j] != 0:
+                        search = 1
+        bp.searches[i] = search
+    ti.loop_config(serialize=ti.static(serialize_light_loops()))
+    for k in range(n):
+        i = shape_id(shapes, awake, k)
+        if bp.refitted[i] != 0 and not stale:
+            _mark_lower_partners(bp, shapes, i)
+    bp.listed[None] = 1
+    bp.searched[None] = 0
+
+
+@ti.func
 def find_pairs_loops(bp: ti.template(), shapes: ti.template(), awake: ti.template(), dispatch: ti.template()):
     """Count pass (which keeps the first PAIRS_PER_SHAPE partners of each shape in its
-    scratch row), scan, then copy; only a shape with more partners is enumerated again.
-    ``awake``: the shapes of the grid (``build_dynamic_grid_loops``) enumerate the pairs."""
+    scratch row, sorted), scan, then copy; only a shape with more partners is enumerated again.
+    ``awake``: the shapes of the grid (``build_dynamic_grid_loops``) enumerate the pairs. A shape
+    that need not search (module docstring) counts and copies its list of last step."""
     n = shape_total(shapes, awake)
+    _choose_searches(bp, shapes, awake, n)
     # a shape checks only partners of higher id, so low ids carry most of the work, and
     # Taichi's CPU loop hands each thread one contiguous block of the range: visit the
     # shapes interleaved (t -> k), so every block holds low and high ids alike
@@ -399,19 +495,33 @@ def find_pairs_loops(bp: ti.template(), shapes: ti.template(), awake: ti.templat
     for t in range(rows * PAIR_SEARCH_STRIDE):
         k = (t % PAIR_SEARCH_STRIDE) * rows + t // PAIR_SEARCH_STRIDE
         if k < n:
-            bp.pair_count[k] = _visit_pairs(bp, shapes, k, k * PAIRS_PER_SHAPE, SCRATCH, awake)
+            i = shape_id(shapes, awake, k)
+            if bp.searches[i] != 0:
+                cnt = _visit_pairs(bp, shapes, k, k * PAIRS_PER_SHAPE, SCRATCH, awake)
+                sort_range(bp.scratch_b, k * PAIRS_PER_SHAPE, k * PAIRS_PER_SHAPE + ti.min(cnt, PAIRS_PER_SHAPE))
+                bp.pair_count[k] = cnt
+                ti.atomic_add(bp.searched[None], 1)
+            else:
+                bp.pair_count[k] = bp.old_start[k + 1] - bp.old_start[k]
     exclusive_scan(bp.scanner, bp.pair_count, bp.pair_start, n, bp.pair_total)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):
         cnt = bp.pair_count[k]
         base = bp.pair_start[k]
-        if cnt <= PAIRS_PER_SHAPE:
-            i = shape_id(shapes, awake, k)
-            for e in range(ti.min(cnt, bp.pair_capacity - base)):
+        i = shape_id(shapes, awake, k)
+        kept = ti.max(0, ti.min(cnt, bp.pair_capacity - base))
+        if bp.searches[i] == 0:
+            old = bp.old_start[k]
+            for e in range(kept):
+                bp.pair_a[base + e] = i
+                bp.pair_b[base + e] = bp.old_b[old + e]
+        elif cnt <= PAIRS_PER_SHAPE:
+            for e in range(kept):
                 bp.pair_a[base + e] = i
                 bp.pair_b[base + e] = bp.scratch_b[k * PAIRS_PER_SHAPE + e]
         else:
             _visit_pairs(bp, shapes, k, base, WRITE, awake)
+            sort_range(bp.pair_b, base, base + kept)
 
 
 @ti.kernel

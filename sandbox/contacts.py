@@ -264,7 +264,7 @@ def clear_contacts_loops(c: ti.template(), bp: ti.template()):
     c.count[None] = 0
     c.manifold_count[None] = 0
     bp.pair_total[None] = 0
-
+    bp.listed[None] = 0  # and every shape searches for its pairs
 
 @ti.kernel
 def clear_contacts(c: ti.template(), bp: ti.template()):

@@ -68,6 +68,7 @@ def read_metrics(b) -> dict:
         "manifolds_reused": int(b.manifold_cache.reused[None]),
         "pairs": int(min(b.bp.pair_total[None], b.bp.pair_capacity)),
         "pairs_reused": int(b.manifold_cache.reused_pairs[None]),
+        "shapes_searched": int(b.bp.searched[None]),  # searched the grid for pairs; the others kept theirs
         "residual_rms": float(np.sqrt(v[RES_SQ_SUM] / (3 * n))) if n else 0.0,
         "residual_max": float(np.sqrt(v[RES_MAX_SQ])),
     }

@@ -61,7 +61,7 @@ class SleepBuffers:
         self.shape_count = ti.field(ti.i32, ())
         self.shape_ids = ti.field(ti.i32, ns)
         self.sleepers = ShapeList(ns)  # the sleeping shapes: what the grid holds
-        self.grid = Broadphase(ns, caps.grid_entries, 16, 16, 1)  # only its dynamic grid is used
+        self.grid = Broadphase(ns, caps.grid_entries, 16, 16, 1, reuses_pairs=False)  # only its dynamic grid is used
         self.asleep = ti.field(ti.i32, nb)
         self.timer = ti.field(ti.f32, nb)  # [s] how long the body has rested
         self.change = ti.field(ti.i32, nb)  # sleep_store.FALLING / WAKING during an event, else 0
@@ -134,7 +134,8 @@ def _refresh(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp
         if sl.flag[k]:
             sl.sleepers.shape_ids[sl.rank[k]] = shapes.dynamic_ids[k]
     sl.grid.cell_size[None] = bp.cell_size[None]
-    build_dynamic_grid_loops(sl.grid, shapes, bodies, margin, 0.0, SPECULATIVE_OFF, err, sl.sleepers, PARALLEL)
+    build_dynamic_grid_loops(sl.grid, shapes, bodies, margin, 0.0, 0.0, SPECULATIVE_OFF, err, sl.sleepers, PARALLEL)
+    bp.listed[None] = 0  # the awake shapes, their slots and their sleeping partners changed
     sl.status[GRID_ENTRIES] = sl.grid.entry_total[None]
     sl.status[SLEEPING_BODIES] = 0
     sl.status[SLEEPING_ISLANDS] = 0

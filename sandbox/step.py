@@ -249,8 +249,8 @@ class Stepper:
         b, p, st = self.edits.buf, self.profiler, self.edits.settings
         margin = st.contact_margin
         with p.stage("broadphase"):
-            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, h, speculation(st), b.errors, awake,
-                               self.edits.dispatch)
+            build_dynamic_grid(b.bp, b.shapes, b.bodies, margin, st.pair_reuse_margin, h, speculation(st), b.errors,
+                               awake, self.edits.dispatch)
             find_pairs(b.bp, b.shapes, awake, self.edits.dispatch)
         with p.stage("narrowphase"):
             collide_pairs(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, st.slop,

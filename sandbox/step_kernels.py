@@ -32,9 +32,9 @@ from .solvers.mass_splitting import update_support_loops
 from .solvers.rows import prepare_row, respond_row
 from .solvers.substep import iterate_in_order_loops
 from .solvers.team_loop import iterate_shared_loops
-from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, OVERLAP_DEPTH, RELAX_SWEEPS, RELAXATION, REUSE_D2,
-                           REUSE_SIN, SLEEP_ANGULAR, SLEEP_LINEAR, SLEEP_TIME, SLOP, STEP, SUBSTEP, SUBSTEPS,
-                           WARM_FACTOR)
+from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, OVERLAP_DEPTH, PAIR_REUSE_MARGIN, RELAX_SWEEPS,
+                           RELAXATION, REUSE_D2, REUSE_SIN, SLEEP_ANGULAR, SLEEP_LINEAR, SLEEP_TIME, SLOP, STEP,
+                           SUBSTEP, SUBSTEPS, WARM_FACTOR)
 
 
 @ti.kernel
@@ -48,7 +48,8 @@ def begin_and_collide(b: ti.template(), speculative: ti.template(), kinds: ti.te
     clear_error_flags(b.errors)
     save_good_state_loops(b.bodies, awake)
     update_world_inertia_loops(b.bodies, awake)
-    build_dynamic_grid_loops(b.bp, b.shapes, b.bodies, margin, h, speculative, b.errors, awake, dispatch)
+    build_dynamic_grid_loops(b.bp, b.shapes, b.bodies, margin, f[PAIR_REUSE_MARGIN], h, speculative, b.errors, awake,
+                             dispatch)
     find_pairs_loops(b.bp, b.shapes, awake, dispatch)
     collide_pairs_loops(b.contacts, b.bp, b.shapes, b.bodies, b.pool, b.manifold_cache, margin, slop, f[OVERLAP_DEPTH],
                         h, speculative, f[REUSE_D2], f[REUSE_SIN], kinds, awake, dispatch)

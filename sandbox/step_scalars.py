@@ -15,13 +15,14 @@ import taichi as ti
 from .manifold_cache import overlap_depth
 
 (MARGIN, SLOP, STEP, REUSE_D2, REUSE_SIN, MATCH_DISTANCE, WARM_FACTOR, RELAXATION, SUBSTEP, SLEEP_LINEAR,
- SLEEP_ANGULAR, SLEEP_TIME, OVERLAP_DEPTH) = range(13)
+ SLEEP_ANGULAR, SLEEP_TIME, OVERLAP_DEPTH, PAIR_REUSE_MARGIN) = range(14)
 """Indices of ``StepScalars.f``: contact margin and slop [m], the step [s], the manifold-reuse
 bounds (Settings.manifold_reuse_bounds), the warm-start match distance [m] and factor, the
 schedule's relaxation, the substep [s], the sleep thresholds [m/s, rad/s] and time [s], and the
 depth beyond the slop that marks a new pair overlapping [fraction of its bound]
-(manifold_cache.overlap_depth)."""
-FLOAT_COUNT = 13
+(manifold_cache.overlap_depth), and the broadphase's pair-reuse growth [m]
+(Settings.pair_reuse_margin)."""
+FLOAT_COUNT = 14
 
 SUBSTEPS, BIASED_SWEEPS, RELAX_SWEEPS = range(3)
 """Indices of ``StepScalars.i``: formulation.SweepPlan's counts."""
@@ -52,6 +53,7 @@ def step_scalar_values(settings, relaxation: float, h: float, plan) -> tuple[tup
     floats[SLEEP_ANGULAR] = settings.sleep_angular_speed
     floats[SLEEP_TIME] = settings.sleep_time
     floats[OVERLAP_DEPTH] = overlap_depth(settings)
+    floats[PAIR_REUSE_MARGIN] = settings.pair_reuse_margin
     ints = [0] * INT_COUNT
     ints[SUBSTEPS], ints[BIASED_SWEEPS], ints[RELAX_SWEEPS] = plan.substeps, plan.biased, plan.relax
     return tuple(float(x) for x in floats), tuple(int(x) for x in ints)

@@ -5,6 +5,9 @@ never pair with each other), ~40 static shapes in the static grid, two planes. T
 list must be exactly the brute-force set of overlapping bounds (closed intervals, the
 device's own float32 bounds), each pair once, grouped by dynamic shape, the same on every
 run; the bounds themselves are the rotated boxes grown by the margin and the step's motion.
+With pair reuse (the enlarged bounds of ``Settings.pair_reuse_margin``), a search after some
+bodies moved, in which only some shapes search again, must give the list of a full search over
+the same bounds, in the same order.
 """
 
 import numpy as np
@@ -125,8 +128,13 @@ class _Broadphase:
         n = SHAPES
         return self.bp.aabb_min.to_numpy()[:n].astype(np.float64), self.bp.aabb_max.to_numpy()[:n].astype(np.float64)
 
-    def pairs(self, dispatch=PARALLEL):
-        build_dynamic_grid(self.bp, self.shapes, self.bodies, MARGIN, DT, 0.0, self.errors, EVERY, dispatch)
+    def pairs(self, dispatch=PARALLEL, reuse_margin=0.0, full=True):
+        """The pair list after a grid build and a pair search; ``full``: every shape searches and
+        is refitted (as in a new world), else only those the reuse rules pick."""
+        if full:
+            self.bp.listed[None] = 0
+        build_dynamic_grid(self.bp, self.shapes, self.bodies, MARGIN, reuse_margin, DT, 0.0, self.errors, EVERY,
+                           dispatch)
         find_pairs(self.bp, self.shapes, EVERY, dispatch)
         total = int(self.bp.pair_total[None])
         a, b = self.bp.pair_a.to_numpy()[:total], self.bp.pair_b.to_numpy()[:total]
@@ -176,6 +184,67 @@ def test_pairs_are_the_same_whether_the_heavy_loops_run_serially_or_in_parallel(
     assert world.pairs(SERIAL) == world.pairs(PARALLEL)  # dispatch.py: the same list, in the same order
 
 
+def test_each_shape_lists_its_partners_by_id(world):
+    pairs = world.pairs()
+    by_shape = {}
+    for a, b in pairs:
+        by_shape.setdefault(a, []).append(b)
+    assert all(part == sorted(part) for part in by_shape.values())  # planes (negative) first
+
+
+REUSE = 0.05  # [m] the enlarged bounds' growth in the reuse tests
+
+
+def _move_some_bodies(world, rng, far: int, near: int):
+    """Shift ``far`` dynamic bodies by 0.5 m (out of their enlarged bounds) and ``near`` by
+    2 mm (inside them), and upload the bodies again; returns the shifted ones."""
+    dynamic_bodies = np.unique(world.shape["body"][world.dynamic])
+    chosen = rng.choice(dynamic_bodies, far + near, replace=False)
+    pos = world.body["pos"].copy()
+    pos[chosen[:far]] += rng.choice([-0.5, 0.5], (far, 3))
+    pos[chosen[far:]] += rng.choice([-0.002, 0.002], (near, 3))
+    world.body = dict(world.body, pos=pos)
+    world.bodies.upload(world.body)
+    return chosen
+
+
+def test_enlarged_bounds_contain_the_step_bounds_and_are_kept_while_they_do():
+    w = _Broadphase(seed=5)
+    w.pairs(reuse_margin=REUSE)
+    lo, hi = _expected_aabbs(w.body, w.shape, swept=True)
+    grow = np.minimum(REUSE, 0.25 * w.shape["bound"])[:, None]
+    fat_lo, fat_hi = w._aabbs()
+    d = w.dynamic
+    np.testing.assert_allclose(fat_lo[d], (lo - grow)[d], rtol=0, atol=AABB_TOLERANCE)
+    np.testing.assert_allclose(fat_hi[d], (hi + grow)[d], rtol=0, atol=AABB_TOLERANCE)
+    moved = _move_some_bodies(w, np.random.default_rng(1), far=0, near=12)
+    w.pairs(reuse_margin=REUSE, full=False)
+    assert int(w.bp.searched[None]) == 0  # 2 mm is inside every enlarged bound: no shape searched
+    kept_lo, kept_hi = w._aabbs()
+    np.testing.assert_array_equal(kept_lo, fat_lo)
+    np.testing.assert_array_equal(kept_hi, fat_hi)
+    lo, hi = _expected_aabbs(w.body, w.shape, swept=True)
+    assert np.all(kept_lo[d] <= lo[d] + AABB_TOLERANCE) and np.all(hi[d] <= kept_hi[d] + AABB_TOLERANCE)
+    assert len(moved) == 12
+
+
+@pytest.mark.parametrize("seed", [2, 3])
+def test_a_search_of_some_shapes_lists_what_a_full_search_of_the_same_bounds_lists(seed):
+    w = _Broadphase(seed=seed)
+    w.pairs(reuse_margin=REUSE)
+    _move_some_bodies(w, np.random.default_rng(seed), far=8, near=20)
+    kept = w.pairs(reuse_margin=REUSE, full=False)
+    searched = int(w.bp.searched[None])
+    assert 0 < searched < len(w.dynamic) // 2  # most shapes copied their old list
+    lo, hi = w._aabbs()  # the enlarged bounds this search used
+    expected = _brute_force_pairs(lo, hi, w.shape, w.dynamic, w.static)
+    order = {int(i): k for k, i in enumerate(w.dynamic)}
+    # the full search's order: shapes in slot order, each shape's partners by id
+    assert kept == sorted(expected, key=lambda p: (order[p[0]], p[1]))
+    for dispatch in (SERIAL, PARALLEL):  # and searching again from these bounds changes nothing
+        assert w.pairs(dispatch, reuse_margin=REUSE, full=False) == kept
+
+
 def test_static_grid_lists_each_static_shape_in_every_cell_it_covers(world):
     """Built on the host with numpy: a cell's bucket holds every static shape whose bounds
     cover it (a bucket may hold more: several cells hash to it)."""
@@ -204,3 +273,22 @@ def test_static_grid_of_no_statics_is_empty():
     grid = build_static_grid(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), CELL)
     assert grid["bucket_start"].sum() == 0 and len(grid["entries"]) == 0
     assert np.all(np.asarray(grid["lo"]) > np.asarray(grid["hi"]))  # empty bounds: nothing is visited
+
+
+@pytest.mark.parametrize("scene, steps", [("dominoes", 200), ("projectile_wall", 120)])
+def test_a_world_steps_to_the_same_bits_whatever_its_pair_reuse_margin(scene, steps):
+    """The enlarged bounds change which shapes search and which pairs without points are
+    listed, never which contacts a step has nor their order (Settings.pair_reuse_margin names
+    the one exception, far speculative points; these scenes have none)."""
+    from sandbox import Scene, World
+    from sandbox.scene.library import resolve_scene
+
+    states = []
+    for margin in (0.0, 0.1):
+        w = World(Scene.load(resolve_scene(scene)), arch="cpu")
+        w.settings = w.settings.replace(pair_reuse_margin=margin)
+        w.step(steps)
+        s = w.state()
+        states.append(np.concatenate([np.ascontiguousarray(s[k], np.float32).ravel() for k in
+                                      ("position", "orientation", "linear_velocity", "angular_velocity")]))
+    np.testing.assert_array_equal(states[0].view(np.uint32), states[1].view(np.uint32))

@@ -247,6 +247,17 @@ class Settings:
     reused, which cuts the narrowphase to about a third (docs/bench.md, "Fifth pass");
     0 turns reuse off (Jolt's body pair cache uses 1 mm and 2 degrees)."""
 
+    pair_reuse_margin: float = 0.02
+    """[m] A dynamic shape enters the broadphase with its bounds grown by this much more (at
+    most a quarter of its bounding radius): while its bounds stay inside those, and no partner's
+    left theirs, it keeps its pairs instead of searching the grid again (broadphase.py; Box2D's
+    and Rapier's enlarged bounds). Larger keeps pairs longer and lists more pairs that have no
+    points. Each shape's partners are listed by id whatever it is, so the contacts do not
+    depend on it, but for one thing: a pair kept without points skips the narrowphase while a
+    bound says it cannot touch (manifold_cache.py), where a pair new to the list runs it, and
+    the two can differ in far speculative points (docs/bench.md, "Fifteenth pass"). 0: a shape
+    searches again whenever its bounds change at all."""
+
     manifold_reuse_angle: float = 0.001
     """[rad] The relative rotation bound of that reuse (at most pi). The kept points are
     where the clipping put them: at 0.01 rad serial PGS at 4 iterations let the card house

@@ -118,6 +118,7 @@ DOMAINS = {
     "speculative_speed": Number(),
     "manifold_reuse_distance": Number(note=REUSE_OFF),
     "manifold_reuse_angle": Within(0.0, math.pi, label="", note=REUSE_OFF),
+    "pair_reuse_margin": Number(),
     "contact_margin": Number(),
     "slop": Number(),
     "contact_hertz": Number(open_low=True),
