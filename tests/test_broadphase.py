@@ -184,12 +184,17 @@ def test_pairs_are_the_same_whether_the_heavy_loops_run_serially_or_in_parallel(
     assert world.pairs(SERIAL) == world.pairs(PARALLEL)  # dispatch.py: the same list, in the same order
 
 
+def _partner_order(j: int) -> tuple:
+    """Shapes by id, then planes (partner -1 - p) by index."""
+    return (0, j) if j >= 0 else (1, -1 - j)
+
+
 def test_each_shape_lists_its_partners_by_id(world):
     pairs = world.pairs()
     by_shape = {}
     for a, b in pairs:
         by_shape.setdefault(a, []).append(b)
-    assert all(part == sorted(part) for part in by_shape.values())  # planes (negative) first
+    assert all(part == sorted(part, key=_partner_order) for part in by_shape.values())
 
 
 REUSE = 0.05  # [m] the enlarged bounds' growth in the reuse tests
@@ -240,7 +245,7 @@ def test_a_search_of_some_shapes_lists_what_a_full_search_of_the_same_bounds_lis
     expected = _brute_force_pairs(lo, hi, w.shape, w.dynamic, w.static)
     order = {int(i): k for k, i in enumerate(w.dynamic)}
     # the full search's order: shapes in slot order, each shape's partners by id
-    assert kept == sorted(expected, key=lambda p: (order[p[0]], p[1]))
+    assert kept == sorted(expected, key=lambda p: (order[p[0]], _partner_order(p[1])))
     for dispatch in (SERIAL, PARALLEL):  # and searching again from these bounds changes nothing
         assert w.pairs(dispatch, reuse_margin=REUSE, full=False) == kept
 
@@ -283,9 +288,11 @@ def test_a_world_steps_to_the_same_bits_whatever_its_pair_reuse_margin(scene, st
     from sandbox import Scene, World
     from sandbox.scene.library import resolve_scene
 
+    from .helpers import TEST_ARCH
+
     states = []
     for margin in (0.0, 0.1):
-        w = World(Scene.load(resolve_scene(scene)), arch="cpu")
+        w = World(Scene.load(resolve_scene(scene)), arch=TEST_ARCH)
         w.settings = w.settings.replace(pair_reuse_margin=margin)
         w.step(steps)
         s = w.state()
