@@ -133,6 +133,7 @@ def _refresh(sl: ti.template(), shapes: ti.template(), bodies: ti.template(), bp
     for k in range(ns):
         if sl.flag[k]:
             sl.sleepers.shape_ids[sl.rank[k]] = shapes.dynamic_ids[k]
+            bp.refitted[shapes.dynamic_ids[k]] = 0  # a sleeper's partners need not search for it
     sl.grid.cell_size[None] = bp.cell_size[None]
     build_dynamic_grid_loops(sl.grid, shapes, bodies, margin, 0.0, 0.0, SPECULATIVE_OFF, err, sl.sleepers, PARALLEL)
     bp.listed[None] = 0  # the awake shapes, their slots and their sleeping partners changed
