@@ -41,7 +41,8 @@ from sandbox.scene.library import resolve_scene
 WRAPPED = {
     "sandbox.step_kernels": ["begin_and_collide", "prepare_step", "finish_step", "solve_step_in_order",
                              "solve_step_shared"],
-    "sandbox.broadphase": ["build_dynamic_grid", "find_pairs"],
+    "sandbox.broadphase": ["build_dynamic_grid"],
+    "sandbox.pair_search": ["find_pairs"],
     "sandbox.contacts": ["collide_pairs"],
     "sandbox.persistence": ["match_contacts", "store_contacts"],
     "sandbox.bodies": ["update_world_inertia", "save_good_state"],

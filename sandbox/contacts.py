@@ -155,7 +155,7 @@ def collide_pairs_loops(c: ti.template(), bp: ti.template(), shapes: ti.template
     the compiled kernel (house rule 8). A pair whose relative pose moved less than
     ``reuse_d2`` (squared distance) and whose relative rotation's half-angle sine stays
     below ``reuse_sin`` takes last step's manifold back (manifold_cache.py). ``awake``
-    (awake.py): the shapes that enumerated the pairs (``broadphase.find_pairs_loops``); in a
+    (awake.py): the shapes that enumerated the pairs (``pair_search.find_pairs_loops``); in a
     sleeping world a pair with points whose partner sleeps marks that island to wake."""
     n_pairs = ti.min(bp.pair_total[None], bp.pair_capacity)
     start_step(cache)

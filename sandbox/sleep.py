@@ -11,7 +11,7 @@ manifolds go to the store (sleep_store.py).
 A sleeping body is in none of the step's lists (awake.py): its shapes are not in the grid
 the awake shapes search, it is not integrated, it is in no contact, its pairs are not
 narrow-phased again. Its shapes sit in a second grid, rebuilt when the sleeping set
-changes, that awake shapes also search (broadphase._visit_sleepers): an awake-sleeping pair
+changes, that awake shapes also search (pair_search._visit_sleepers): an awake-sleeping pair
 is narrow-phased like any other, and if it has points the sleeping island is marked
 (awake.note_touch), woken, and the collision of that step done again from the same state
 (``wake_touched``), so the woken island's contacts are solved in the very step the touch

@@ -1,7 +1,7 @@
 """The static shapes' hash grid, built once on the host with numpy (statics never move).
 
 Mesh triangles and static bodies' shapes go into a grid of their own (``Broadphase``'s
-``static_*`` fields, searched by ``broadphase._visit_grid``): their world bounds are computed
+``static_*`` fields, searched by ``pair_search._visit_grid``): their world bounds are computed
 once, the cell is the larger of the dynamic grid's and the statics' median extent, and each
 static shape is listed in every cell its bounds cover, bucketed by the same hash the device
 uses (``broadphase.cell_hash``) and sorted by shape within a bucket. ``static_entry_count``

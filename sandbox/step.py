@@ -2,7 +2,7 @@
 
 The step, stage by stage (names = profile keys = report keys, profile.STAGES):
 
-1. ``broadphase``   AABBs, hash grid, candidate pairs (broadphase.py)
+1. ``broadphase``   AABBs, hash grid, candidate pairs (broadphase.py, pair_search.py)
 2. ``narrowphase``  manifolds into the contact buffer (contacts.py)
 3. ``prepare``      rows, warm-start matching, schedule set-up (solvers/)
 4. ``iterations`` substeps of h / iterations (Box2D v3's soft step, see solvers/rows.py):
@@ -243,8 +243,9 @@ class Stepper:
                 return b
 
     def _collide(self, h: float, awake) -> None:
-        from .broadphase import build_dynamic_grid, find_pairs
+        from .broadphase import build_dynamic_grid
         from .contacts import collide_pairs
+        from .pair_search import find_pairs
 
         b, p, st = self.edits.buf, self.profiler, self.edits.settings
         margin = st.contact_margin

@@ -20,10 +20,11 @@ import taichi as ti
 
 from .awake import EVERY
 from .bodies import save_good_state_loops, update_world_inertia_loops
-from .broadphase import build_dynamic_grid_loops, compute_all_aabbs_loops, find_pairs_loops
+from .broadphase import build_dynamic_grid_loops, compute_all_aabbs_loops
 from .contacts import clear_contacts_loops, collide_pairs_loops
 from .integrate import check_bodies_loops, clear_error_flags
 from .manifold_cache import clear_cache_loops
+from .pair_search import find_pairs_loops
 from .persistence import clear_history_loops, match_contact, store_contacts_loops
 from .sleep import rest_and_label_loops
 from .solvers.impact_carry import clear_impacts, list_carry_rows

@@ -15,7 +15,8 @@ import pytest
 
 from sandbox.bodies import Bodies
 from sandbox.awake import EVERY
-from sandbox.broadphase import Broadphase, build_dynamic_grid, compute_all_aabbs, find_pairs
+from sandbox.broadphase import Broadphase, build_dynamic_grid, compute_all_aabbs
+from sandbox.pair_search import find_pairs
 from sandbox.static_grid import build_static_grid
 from sandbox.dispatch import PARALLEL, SERIAL
 from sandbox.integrate import ErrorFlags
