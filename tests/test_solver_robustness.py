@@ -9,7 +9,9 @@ hold within its deflection, so tall piles no longer sag by that floor. Where a c
 it is an expected failure with its measured figure, never a loosened criterion.
 """
 
+import tomllib
 from itertools import product
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -360,6 +362,42 @@ def test_projected_jacobi_bounds_its_relaxation_by_the_busiest_body(iterations):
     assert busiest > 8
     assert float(bounded.buf.blocks.scale[0]) == pytest.approx(max(4.0, split), rel=1e-6)
     assert float(fixed.buf.blocks.scale[0]) == pytest.approx(4.0, rel=1e-6)
+
+
+def test_placed_within_moves_each_body_sideways_by_at_most_the_jitter():
+    """The ensemble's placements (benchmarks/card_house_ensemble.py): seeded, sideways only, within
+    the jitter, and the case itself untouched."""
+    from sandbox.hard_cases import leaning_planks, placed_within
+
+    case = leaning_planks()
+    start = [b["position"] for b in tomllib.loads(case.scene.read_text())["body"]]
+    placed = placed_within(case, 1e-5, seed=3)
+    moved = np.array([b["position"] for b in placed.scene["body"]]) - np.array(start)
+    assert np.abs(moved[:, :2]).max() <= 1e-5 and np.abs(moved[:, :2]).min() > 0.0
+    assert np.all(moved[:, 2] == 0.0)
+    assert placed_within(case, 1e-5, seed=3).scene == placed.scene != placed_within(case, 1e-5, seed=4).scene
+    assert isinstance(case.scene, Path) and placed.steps == case.steps and placed.judge is case.judge
+
+
+CARD_HOUSE_LUCK = ("projected Jacobi's card house at 15 iterations stands as shipped (0.16 mm) but falls in 3 of 8 "
+                   "placements within 10 um (1.3-1.6 m; benchmarks/card_house_ensemble.py): a card's top joint "
+                   "slides at its friction cone under sweeps that do not converge; two sweeps a substep on the same "
+                   "springs hold all 9 (docs/method-notes.md, \"The card house at 8 iterations\")")
+
+
+@pytest.mark.parametrize("solver, iterations", [
+    ("pgs", 8), ("mass-splitting", 8), ("mass-splitting", 15), ("block-mass-splitting", 15),
+    pytest.param("jacobi", 15, marks=pytest.mark.xfail(strict=True, reason=CARD_HOUSE_LUCK))])
+def test_the_card_house_stands_wherever_it_is_placed_within_10_um(solver, iterations):
+    """One history of a marginal case passes or fails by rounding (block mass splitting's card house
+    at 8 iterations went from 0.7 mm to a collapse with a new contact order). A schedule that holds
+    the card house holds it placed a few micrometres differently too: four seeded placements, the
+    case's own criterion (no card moves more than 5 mm after the first second)."""
+    from sandbox.hard_cases import leaning_planks, placed_within, run_case
+
+    for seed in (1, 2, 3, 4):
+        result = run_case(placed_within(leaning_planks(), 1e-5, seed), solver, iterations, arch=TEST_ARCH)
+        assert result.passed, f"seed {seed}: {result.figures}"
 
 
 def test_a_jacobi_bounce_beside_a_busy_body_keeps_its_speed():
