@@ -2,7 +2,7 @@
 
     python benchmarks/card_house_ensemble.py [--solvers pgs,pgs-colored,jacobi,mass-splitting,block-mass-splitting]
                                              [--iterations 8] [--runs 9] [--jitter 1e-5] [--seed 0]
-                                             [--set KEY=VALUE ...]
+                                             [--set NAME=VALUE ...]
 
 One cell of docs/stability.md is one history: the hard case ``leaning_planks`` run once. Near the
 edge of what a schedule holds, which way that one history goes turns on rounding (session 53: a
@@ -20,7 +20,7 @@ ensemble. docs/method-notes.md, "The card house at 8 iterations", has the figure
 from __future__ import annotations
 
 import argparse
-import dataclasses
+import ast
 import re
 import sys
 from pathlib import Path
@@ -31,18 +31,6 @@ from sandbox.hard_cases import leaning_planks, placed_within, run_case  # noqa: 
 from sandbox.settings import Settings  # noqa: E402
 
 
-def parse_overrides(items: list[str]) -> dict:
-    defaults = Settings()
-    overrides = {}
-    for item in items:
-        key, _, text = item.partition("=")
-        if not hasattr(defaults, key):
-            raise SystemExit(f"--set {item}: Settings has no field {key!r}")
-        current = getattr(defaults, key)
-        overrides[key] = int(text) if isinstance(current, int) and not isinstance(current, bool) else float(text)
-    return overrides
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--solvers", default="pgs,pgs-colored,jacobi,mass-splitting,block-mass-splitting")
@@ -50,11 +38,13 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=9)
     parser.add_argument("--jitter", type=float, default=1e-5, help="[m] largest sideways offset of a card")
     parser.add_argument("--seed", type=int, default=0, help="run i > 0 is placed with seed + i")
-    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                        help="a Settings field (a Python literal), as in step_bench.py")
     args = parser.parse_args()
 
     case = leaning_planks()
-    settings = dataclasses.replace(Settings(), **parse_overrides(args.set))
+    changes = {name: ast.literal_eval(value) for name, _, value in (item.partition("=") for item in args.set)}
+    settings = Settings().replace(**changes)  # a wrong name or value fails here, before any world
     cases = [case] + [placed_within(case, args.jitter, args.seed + i) for i in range(1, args.runs)]
     print(f"{case.name}, {args.iterations} iterations, {args.runs} placements (run 0 as shipped, the others "
           f"within {args.jitter * 1e6:g} um), overrides {args.set or 'none'}")
