@@ -38,16 +38,18 @@ class Scanner:
 
 
 @ti.func
-def exclusive_scan(scan: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template()):
+def exclusive_scan(scan: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template(),
+                   active: ti.i32 = 1):
     """dst[i] = sum(src[:i]) for i < n, dst[n] = total[None] = sum(src[:n]).
 
     Must be called at the top level of a kernel (it contains top-level loops). On the CPU
     it is one loop on the launching thread: a few microseconds, where each parallel loop
-    would cost a thread-pool dispatch (backend.serialize_light_loops).
+    would cost a thread-pool dispatch (backend.serialize_light_loops). ``active`` = 0 runs its
+    loops zero times and leaves ``dst`` and ``total`` as they were (a grid kept from last step).
     """
     if ti.static(serialize_light_loops()):
         ti.loop_config(serialize=True)
-        for _ in range(1):
+        for _ in range(active):
             run = 0
             for k in range(n):
                 v = src[k]
@@ -56,18 +58,19 @@ def exclusive_scan(scan: ti.template(), src: ti.template(), dst: ti.template(), 
             total[None] = run
             dst[n] = run
     else:
-        _blocked_scan(scan, src, dst, n, total)
+        _blocked_scan(scan, src, dst, n, total, active)
 
 
 @ti.func
-def _blocked_scan(scan: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template()):
-    blocks = (n + BLOCK - 1) // BLOCK
+def _blocked_scan(scan: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template(),
+                  active: ti.i32 = 1):
+    blocks = (n + BLOCK - 1) // BLOCK * active
     for blk in range(blocks):
         s = 0
         for k in range(blk * BLOCK, ti.min((blk + 1) * BLOCK, n)):
             s += src[k]
         scan.block_sum[blk] = s
-    for _ in range(1):
+    for _ in range(active):
         run = 0
         for blk in range(blocks):
             v = scan.block_sum[blk]

@@ -234,6 +234,36 @@ def test_enlarged_bounds_contain_the_step_bounds_and_are_kept_while_they_do():
     assert len(moved) == 12
 
 
+def _grid(bp) -> dict:
+    """The dynamic grid as a pair search reads it."""
+    n = int(bp.entry_total[None])
+    out = {"entry_total": n, "bucket_start": bp.bucket_start.to_numpy()}
+    for name in ("sorted_shape", "sorted_lo", "sorted_hi", "sorted_body", "sorted_cell_lo"):
+        out[name] = getattr(bp, name).to_numpy()[:n]
+    return out
+
+
+def test_a_grid_whose_shapes_all_keep_their_bounds_is_kept_and_equals_a_rebuild():
+    """A step in which no shape refits its enlarged bounds (a settled pile) skips the grid's build,
+    and the grid it keeps is the one a build from the same bounds makes."""
+    w = _Broadphase(seed=7)
+    w.pairs(reuse_margin=REUSE)
+    built = _grid(w.bp)
+    _move_some_bodies(w, np.random.default_rng(7), far=0, near=12)  # 2 mm: inside every enlarged bound
+    w.bp.bucket_fill.fill(-7)  # a build clears it and counts into it
+    kept_pairs = w.pairs(reuse_margin=REUSE, full=False)
+    assert int(w.bp.refitted.to_numpy()[:SHAPES].sum()) == 0 and int(w.bp.searched[None]) == 0
+    assert np.all(w.bp.bucket_fill.to_numpy() == -7), "the grid was built though no shape refitted"
+    kept = _grid(w.bp)
+    w.bp.refits[None] = 1  # force the build, from the same bounds
+    assert w.pairs(reuse_margin=REUSE, full=False) == kept_pairs
+    assert not np.all(w.bp.bucket_fill.to_numpy() == -7)
+    rebuilt = _grid(w.bp)
+    for name in built:
+        np.testing.assert_array_equal(kept[name], built[name], err_msg=name)
+        np.testing.assert_array_equal(rebuilt[name], built[name], err_msg=name)
+
+
 @pytest.mark.parametrize("seed", [2, 3])
 def test_a_search_of_some_shapes_lists_what_a_full_search_of_the_same_bounds_lists(seed):
     w = _Broadphase(seed=seed)

@@ -18,13 +18,15 @@ SIZES = [0, 1, 2, 255, 256, 257, 1000, 4097, CAPACITY - 1]
 
 
 @ti.kernel
-def _scan(scanner: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template()):
-    prefix_sum.exclusive_scan(scanner, src, dst, n, total)
+def _scan(scanner: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template(),
+          active: ti.i32):
+    prefix_sum.exclusive_scan(scanner, src, dst, n, total, active)
 
 
 @ti.kernel
-def _blocked(scanner: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template()):
-    prefix_sum._blocked_scan(scanner, src, dst, n, total)
+def _blocked(scanner: ti.template(), src: ti.template(), dst: ti.template(), n: ti.i32, total: ti.template(),
+             active: ti.i32):
+    prefix_sum._blocked_scan(scanner, src, dst, n, total, active)
 
 
 @ti.kernel
@@ -53,12 +55,24 @@ def test_exclusive_scan_matches_numpy(fields, kernel, n):
     fields["src"].from_numpy(src)
     fields["dst"].from_numpy(np.full(CAPACITY + 1, -1, np.int32))
     fields["total"][None] = -1
-    kernel(fields["scanner"], fields["src"], fields["dst"], n, fields["total"])
+    kernel(fields["scanner"], fields["src"], fields["dst"], n, fields["total"], 1)
     dst = fields["dst"].to_numpy()
     expected = np.concatenate([[0], np.cumsum(src[:n], dtype=np.int64)])
     np.testing.assert_array_equal(dst[: n + 1], expected)  # dst[n] is the total
     assert fields["total"][None] == expected[-1]
     assert np.all(dst[n + 1:] == -1)  # nothing written past n
+
+
+@pytest.mark.parametrize("kernel", [_scan, _blocked], ids=["cpu-scan", "blocked-scan"])
+def test_an_inactive_scan_writes_nothing(fields, kernel):
+    """``active`` 0 (a grid kept from the step before, broadphase.py): the last scan's output stays."""
+    n = 1000
+    fields["src"].from_numpy(np.full(CAPACITY, 3, np.int32))
+    fields["dst"].from_numpy(np.arange(CAPACITY + 1, dtype=np.int32))
+    fields["total"][None] = -5
+    kernel(fields["scanner"], fields["src"], fields["dst"], n, fields["total"], 0)
+    np.testing.assert_array_equal(fields["dst"].to_numpy(), np.arange(CAPACITY + 1, dtype=np.int32))
+    assert fields["total"][None] == -5
 
 
 def test_sort_range_sorts_each_range_and_nothing_else():
