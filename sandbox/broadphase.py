@@ -1,8 +1,8 @@
-"""Broadphase: world AABBs and a spatial hash grid rebuilt per step by counting sort, in
-expected O(n) and in a deterministic order (the candidate pairs: pair_search.py).
+"""Broadphase: world AABBs and a spatial hash grid built by counting sort, in expected O(n) and
+in a deterministic order (the candidate pairs: pair_search.py).
 
-Dynamic shapes go into a hashed uniform grid rebuilt each step (count cells per
-shape, scan, write entries, count per bucket, scan, fill, then sort each bucket
+Dynamic shapes go into a hashed uniform grid, built in every step whose bounds changed (count
+cells per shape, scan, write entries, count per bucket, scan, fill, then sort each bucket
 by shape id so that the order never depends on thread timing). Static shapes
 (mesh triangles, static bodies) sit in a second grid built once on the host
 (static_grid.py), so a 8192-triangle terrain costs only the cells a body overlaps.
@@ -292,13 +292,19 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
 
 
 @ti.func
+def pair_lists_stale(bp: ti.template()) -> ti.i32:
+    """1: last step's pair lists cannot be kept (a new buffer, world or awake set, ``listed`` 0, or a
+    list that overflowed), so every shape searches (pair_search.py) and the grid is built."""
+    return ti.cast(bp.listed[None] == 0 or bp.pair_total[None] > bp.pair_capacity, ti.i32)
+
+
+@ti.func
 def _grid_changed(bp: ti.template()) -> ti.i32:
     """1: this step builds the grid (a shape refitted, or pair lists that cannot be kept); always
     without pair reuse."""
     changed = 1
     if ti.static(bp.reuses_pairs):
-        changed = ti.max(bp.refits[None], ti.cast(bp.listed[None] == 0 or bp.pair_total[None] > bp.pair_capacity,
-                                                  ti.i32))
+        changed = ti.max(bp.refits[None], pair_lists_stale(bp))
     return changed
 
 

@@ -21,7 +21,7 @@ import taichi as ti
 
 from .awake import shape_id, shape_total
 from .backend import serialize_light_loops
-from .broadphase import PAIRS_PER_SHAPE, cell_coord, cell_hash, cell_range
+from .broadphase import PAIRS_PER_SHAPE, cell_coord, cell_hash, cell_range, pair_lists_stale
 from .math3d import dot
 from .prefix_sum import exclusive_scan
 
@@ -207,7 +207,7 @@ def _mark_lower_partners(bp: ti.template(), shapes: ti.template(), i: ti.i32):
 def _choose_searches(bp: ti.template(), shapes: ti.template(), awake: ti.template(), n: ti.i32):
     """Keep last step's list in ``old_b`` / ``old_start`` and say which shapes search again
     (``searches``, module docstring): all when ``listed`` is 0 or last step's list overflowed."""
-    stale = bp.listed[None] == 0 or bp.pair_total[None] > bp.pair_capacity
+    stale = pair_lists_stale(bp)
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for p in range(ti.min(bp.pair_total[None], bp.pair_capacity)):
         bp.old_b[p] = bp.pair_b[p]
