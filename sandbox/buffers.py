@@ -98,13 +98,13 @@ class BufferSet:
 
     def lane_rows(self) -> LaneRows:
         """The rows in groups of eight that the CPU team's sweeps read (solvers/point_lanes.py),
-        allocated on the first call: ~57 floats a point and ~450 field nodes (0.08 s to declare on
+        allocated on the first call: ~57 floats a point, 19 a body, and ~600 field nodes (0.08 s to declare on
         the 2-core VM) that a world on CUDA, a small world's one-thread loop and serial PGS never
         touch. Schedule.team calls it before every launch of the team, so no kernel that reads it
         compiles without it; it does so for every schedule the team runs (pgs-colored and block
         mass splitting, whose sweeps do not read the lanes, included), which keeps the rule simple."""
         if self.lanes is None:
-            self.lanes = LaneRows(self.contacts.capacity)
+            self.lanes = LaneRows(self.contacts.capacity, self.bodies.capacity)
         return self.lanes
 
 

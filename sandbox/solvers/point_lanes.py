@@ -24,6 +24,7 @@ benchmarks/lane_sweep.py times this sweep against sweep_block.
 import taichi as ti
 
 from ..lanes import LANES, lane_group_field
+from ..pose_lanes import POSE_ROWS
 from . import team as tm
 from .block_adjacency import PER_POINT
 from .contact_spring import RELAX_PUSH
@@ -45,10 +46,12 @@ class LaneRows:
     """The rows a per-point sweep reads, copied per step into groups of eight points (lanes.py):
     ``[group][row, lane]``. ``vectors``: normal, t1, t2 and the inverse effective masses, three
     rows each; ``ang_a`` ... ``resp_b``: rows.py's 3 x 3 matrices, row r * 3 + e; ``scalars``:
-    the LIN_A ... WEIGHT_B rows; ``target``: the normal rows' targets of the sweep under way."""
+    the LIN_A ... WEIGHT_B rows; ``target``: the normal rows' targets of the sweep under way;
+    ``poses``: the bodies' new poses in groups of eight, the position update's out-rows
+    (pose_lanes.POSE_ROWS)."""
 
-    def __init__(self, point_capacity: int):
-        tree = ti.FieldsBuilder()  # ~450 field nodes: a tree of their own (lanes.lane_group_field)
+    def __init__(self, point_capacity: int, body_capacity: int):
+        tree = ti.FieldsBuilder()  # ~600 field nodes: a tree of their own (lanes.lane_group_field)
         self.vectors = lane_group_field(12, point_capacity, builder=tree)
         self.ang_a = lane_group_field(9, point_capacity, builder=tree)
         self.ang_b = lane_group_field(9, point_capacity, builder=tree)
@@ -56,6 +59,7 @@ class LaneRows:
         self.resp_b = lane_group_field(9, point_capacity, builder=tree)
         self.scalars = lane_group_field(SCALARS, point_capacity, builder=tree)
         self.target = lane_group_field(1, point_capacity, builder=tree)
+        self.poses = lane_group_field(POSE_ROWS, body_capacity, builder=tree)  # pose_lanes.py
         self.tree = tree.finalize()
 
 

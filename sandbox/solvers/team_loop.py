@@ -10,7 +10,9 @@ sweeps of per-point blocks go eight points at a time, on the vector units (point
 import taichi as ti
 
 from ..awake import body_id, body_total
-from ..integrate import advance_pose, apply_gravity
+from ..integrate import GYROSCOPIC, advance_pose, apply_gravity
+from ..lanes import LANES
+from ..pose_lanes import advance_poses
 from . import team as tm
 from .contact_spring import params_gravity
 from .mass_splitting import clamp_folded_carries, gather_body, sweep_block, warm_block
@@ -64,9 +66,42 @@ light blocks' slots (light_bodies.py)."""
 
 
 @ti.func
-def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
+def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
                 bodies: ti.template(), awake: ti.template(), motion: ti.template(),
                 what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32) -> ti.i32:
+    if ti.static((what == POSE or what == GATHER_POSE) and motion & GYROSCOPIC):
+        p = _pose_lane_phase(team, p, member, members, lr, s, bodies, awake, motion, what, dv_extra, h)
+    else:
+        p = _body_item_phase(team, p, member, members, s, bodies, awake, motion, what, dv_extra, gravity, h)
+    return p
+
+
+@ti.func
+def _pose_lane_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
+                     s: ti.template(),
+                     bodies: ti.template(), awake: ti.template(), motion: ti.template(), what: ti.template(),
+                     dv_extra: vec3, h: ti.f32) -> ti.i32:
+    """A POSE or GATHER_POSE phase of a world with the gyroscopic term: its items groups of eight
+    bodies, each gathered one by one (GATHER_POSE) and then advanced together (pose_lanes.py)."""
+    n = body_total(bodies, awake)
+    groups = (n + LANES - 1) // LANES
+    lo, hi, j = tm.next_chunk(team, p, groups, member, members, 0)
+    while lo < hi:
+        for g in range(lo, hi):
+            if ti.static(what == GATHER_POSE):
+                for l in range(ti.min(LANES, n - g * LANES)):
+                    gather_body(s, bodies, dv_extra, body_id(awake, g * LANES + l))
+            advance_poses(lr.poses, bodies, awake, motion, h, g, n)
+        tm.finish(team, p, hi - lo)
+        lo, hi, j = tm.next_chunk(team, p, groups, member, members, j)
+    tm.wait(team, p, groups)
+    return p + 1
+
+
+@ti.func
+def _body_item_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
+                     bodies: ti.template(), awake: ti.template(), motion: ti.template(),
+                     what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32) -> ti.i32:
     n = s.light_body_count[None] if ti.static(what == GATHER_LIGHT) else body_total(bodies, awake)
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
     while lo < hi:
@@ -113,7 +148,7 @@ def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
 
 
 @ti.func
-def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
+def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
                   rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                   motion: ti.template(), col: ti.template(), kind: ti.template(),
                   schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3,
@@ -124,16 +159,16 @@ def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
     if ti.static(schedule == PGS_COLORED):
         p = _color_phases(team, p, member, members, rows, c, bodies, col, mode, friction, substep)
         if pose_after:
-            p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
+            p = _body_phase(team, p, member, members, lr, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
     else:
         p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, mode, friction, then_warm, False,
                          substep, fast_slot)
         dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
         if pose_after:
-            p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_POSE, dv_extra, gravity,
+            p = _body_phase(team, p, member, members, lr, s, bodies, awake, motion, GATHER_POSE, dv_extra, gravity,
                             h)
         else:
-            p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER, dv_extra, gravity, h)
+            p = _body_phase(team, p, member, members, lr, s, bodies, awake, motion, GATHER, dv_extra, gravity, h)
     return p
 
 
@@ -168,7 +203,7 @@ def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 
 
 @ti.func
-def _light_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
+def _light_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
                   rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                   motion: ti.template(), kind: ti.template(), friction: ti.template(), gravity: vec3, h: ti.f32,
                   it: ti.i32, extra: ti.i32, fast_slot: ti.i32) -> ti.i32:
@@ -178,9 +213,9 @@ def _light_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
     for _e in range(extra):
         p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, False, it, fast_slot,
                          True)
-        p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_LIGHT, vec3(0.0), gravity, h)
+        p = _body_phase(team, p, member, members, lr, s, bodies, awake, motion, GATHER_LIGHT, vec3(0.0), gravity, h)
     if extra > 0:
-        p = _body_phase(team, p, member, members, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
+        p = _body_phase(team, p, member, members, lr, s, bodies, awake, motion, POSE, vec3(0.0), gravity, h)
     return p
 
 
@@ -198,7 +233,7 @@ def _lane_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
     k = 0
     while k < sweeps + n_relax or k == sweeps:
         if k == sweeps:  # the biased sweeps are done
-            p = _light_sweeps(team, p, member, members, s, rows, c, bodies, awake, motion, kind, friction, gravity, h,
+            p = _light_sweeps(team, p, member, members, lr, s, rows, c, bodies, awake, motion, kind, friction, gravity, h,
                               it, extra, fast_slot)
             n_relax = relax + ti.atomic_add(team.fast[fast_slot], 0)  # the same for every member
         if k < sweeps + n_relax:
@@ -210,10 +245,10 @@ def _lane_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
                                   fast_slot)
             dv_extra = gravity * h * ti.cast(then_warm, ti.f32)
             if biased * int(k == sweeps - 1 and extra == 0):  # the poses advance after the last biased sweep
-                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER_POSE, dv_extra, gravity,
+                p = _body_phase(team, p, member, members, lr, s, bodies, awake, motion, GATHER_POSE, dv_extra, gravity,
                                 h)
             else:
-                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER, dv_extra, gravity, h)
+                p = _body_phase(team, p, member, members, lr, s, bodies, awake, motion, GATHER, dv_extra, gravity, h)
         k += 1
     return p
 
@@ -238,10 +273,10 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
         if first:
             if ti.static(warm):
                 p = _block_phase(team, p, member, members, s, rows, c, bodies, kind, BIASED, friction, 0, True)
-                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GATHER, gravity * h,
+                p = _body_phase(team, p, member, members, lr, s, bodies, awake, motion, GATHER, gravity * h,
                                 gravity, h)
             else:
-                p = _body_phase(team, p, member, members, s, bodies, awake, motion, GRAVITY, vec3(0.0),
+                p = _body_phase(team, p, member, members, lr, s, bodies, awake, motion, GRAVITY, vec3(0.0),
                                 gravity, h)
         fast_slot = p  # this substep's biased phases mark a fast push here; read once they are all done
         extra = light_sweeps_now(s, schedule)  # the same for every member: set before the loop
@@ -250,10 +285,10 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
                              gravity, h, it, iterations, sweeps, relax, extra, fast_slot)
         else:
             for sb in range(sweeps):
-                p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
+                p = _sweep_phases(team, p, member, members, lr, s, rows, c, bodies, awake, motion, col, kind, schedule,
                                   BIASED, friction, 0, int(sb == sweeps - 1 and extra == 0), gravity, h, it, fast_slot)
             if ti.static(schedule == BLOCKS):
-                p = _light_sweeps(team, p, member, members, s, rows, c, bodies, awake, motion, kind, friction, gravity,
+                p = _light_sweeps(team, p, member, members, lr, s, rows, c, bodies, awake, motion, kind, friction, gravity,
                                   h, it, extra, fast_slot)
             n_relax = relax
             if ti.static(schedule == BLOCKS):
@@ -263,7 +298,7 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
                 then_warm = 0
                 if ti.static(fold):
                     then_warm = 1 if it < iterations - 1 and sr == n_relax - 1 else 0
-                p = _sweep_phases(team, p, member, members, s, rows, c, bodies, awake, motion, col, kind, schedule,
+                p = _sweep_phases(team, p, member, members, lr, s, rows, c, bodies, awake, motion, col, kind, schedule,
                                   RELAX, friction, then_warm, 0, gravity, h, it)
         if ti.static(fold):
             if it < iterations - 1:
