@@ -59,7 +59,7 @@ def _mat_vec(m, v):
 def _mat_mul(a, b):
     """math3d.mat_mul."""
     zero = a[0] * b[0] * 0
-    return [((zero + a[3 * (k // 3)] * b[k % 3]) + a[3 * (k // 3) + 1] * b[3 + k % 3]) + a[3 * (k // 3) + 2] * b[6 + k % 3]
+    return [((zero + a[k - k % 3] * b[k % 3]) + a[k - k % 3 + 1] * b[3 + k % 3]) + a[k - k % 3 + 2] * b[6 + k % 3]
             for k in ti.static(range(9))]
 
 

@@ -4,7 +4,8 @@ walks every phase of ``substep.iterate_in_order`` in its order, each phase's blo
 claimed in chunks, each phase waited for at its end. The same bits as the one-thread loop (a
 phase's items write only their own outputs), with both cores and one thread-pool wake-up per
 step instead of one per phase (~50 us each on the 2-core VM, benchmarks/loop_dispatch.py). Its
-sweeps of per-point blocks go eight points at a time, on the vector units (point_lanes.py).
+sweeps of per-point blocks go eight points at a time, on the vector units (point_lanes.py), and so
+do its position updates in a world with the gyroscopic term, eight bodies at a time (pose_lanes.py).
 """
 
 import taichi as ti
@@ -66,8 +67,8 @@ light blocks' slots (light_bodies.py)."""
 
 
 @ti.func
-def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
-                bodies: ti.template(), awake: ti.template(), motion: ti.template(),
+def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
+                s: ti.template(), bodies: ti.template(), awake: ti.template(), motion: ti.template(),
                 what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32) -> ti.i32:
     if ti.static((what == POSE or what == GATHER_POSE) and motion & GYROSCOPIC):
         p = _pose_lane_phase(team, p, member, members, lr, s, bodies, awake, motion, what, dv_extra, h)
@@ -78,9 +79,8 @@ def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32,
 
 @ti.func
 def _pose_lane_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
-                     s: ti.template(),
-                     bodies: ti.template(), awake: ti.template(), motion: ti.template(), what: ti.template(),
-                     dv_extra: vec3, h: ti.f32) -> ti.i32:
+                     s: ti.template(), bodies: ti.template(), awake: ti.template(), motion: ti.template(),
+                     what: ti.template(), dv_extra: vec3, h: ti.f32) -> ti.i32:
     """A POSE or GATHER_POSE phase of a world with the gyroscopic term: its items groups of eight
     bodies, each gathered one by one (GATHER_POSE) and then advanced together (pose_lanes.py)."""
     n = body_total(bodies, awake)
@@ -148,8 +148,8 @@ def _color_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i3
 
 
 @ti.func
-def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
-                  rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
+def _sweep_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
+                  s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                   motion: ti.template(), col: ti.template(), kind: ti.template(),
                   schedule: ti.template(), mode: ti.template(), friction: ti.template(), then_warm: ti.i32, pose_after: ti.i32, gravity: vec3,
                   h: ti.f32, substep: ti.i32, fast_slot: ti.i32 = 0) -> ti.i32:
@@ -203,8 +203,8 @@ def _point_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 
 
 @ti.func
-def _light_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
-                  rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
+def _light_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
+                  s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), awake: ti.template(),
                   motion: ti.template(), kind: ti.template(), friction: ti.template(), gravity: vec3, h: ti.f32,
                   it: ti.i32, extra: ti.i32, fast_slot: ti.i32) -> ti.i32:
     """Substep ``it``'s ``extra`` biased sweeps of light bodies' blocks after the biased sweeps
@@ -233,8 +233,8 @@ def _lane_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
     k = 0
     while k < sweeps + n_relax or k == sweeps:
         if k == sweeps:  # the biased sweeps are done
-            p = _light_sweeps(team, p, member, members, lr, s, rows, c, bodies, awake, motion, kind, friction, gravity, h,
-                              it, extra, fast_slot)
+            p = _light_sweeps(team, p, member, members, lr, s, rows, c, bodies, awake, motion, kind, friction, gravity,
+                              h, it, extra, fast_slot)
             n_relax = relax + ti.atomic_add(team.fast[fast_slot], 0)  # the same for every member
         if k < sweeps + n_relax:
             biased = 1 if k < sweeps else 0
@@ -288,8 +288,8 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
                 p = _sweep_phases(team, p, member, members, lr, s, rows, c, bodies, awake, motion, col, kind, schedule,
                                   BIASED, friction, 0, int(sb == sweeps - 1 and extra == 0), gravity, h, it, fast_slot)
             if ti.static(schedule == BLOCKS):
-                p = _light_sweeps(team, p, member, members, lr, s, rows, c, bodies, awake, motion, kind, friction, gravity,
-                                  h, it, extra, fast_slot)
+                p = _light_sweeps(team, p, member, members, lr, s, rows, c, bodies, awake, motion, kind, friction,
+                                  gravity, h, it, extra, fast_slot)
             n_relax = relax
             if ti.static(schedule == BLOCKS):
                 # the same for every member: never reset in a loop
