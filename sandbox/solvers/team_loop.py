@@ -70,55 +70,43 @@ light blocks' slots (light_bodies.py)."""
 def _body_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
                 s: ti.template(), bodies: ti.template(), awake: ti.template(), motion: ti.template(),
                 what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32) -> ti.i32:
-    if ti.static((what == POSE or what == GATHER_POSE) and motion & GYROSCOPIC):
-        p = _pose_lane_phase(team, p, member, members, lr, s, bodies, awake, motion, what, dv_extra, h)
-    else:
-        p = _body_item_phase(team, p, member, members, s, bodies, awake, motion, what, dv_extra, gravity, h)
-    return p
-
-
-@ti.func
-def _pose_lane_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
-                     s: ti.template(), bodies: ti.template(), awake: ti.template(), motion: ti.template(),
-                     what: ti.template(), dv_extra: vec3, h: ti.f32) -> ti.i32:
-    """A POSE or GATHER_POSE phase of a world with the gyroscopic term: its items groups of eight
-    bodies, each gathered one by one (GATHER_POSE) and then advanced together (pose_lanes.py)."""
-    n = body_total(bodies, awake)
-    groups = (n + LANES - 1) // LANES
-    lo, hi, j = tm.next_chunk(team, p, groups, member, members, 0)
-    while lo < hi:
-        for g in range(lo, hi):
-            if ti.static(what == GATHER_POSE):
-                for l in range(ti.min(LANES, n - g * LANES)):
-                    gather_body(s, bodies, dv_extra, body_id(awake, g * LANES + l))
-            advance_poses(lr.poses, bodies, awake, motion, h, g, n)
-        tm.finish(team, p, hi - lo)
-        lo, hi, j = tm.next_chunk(team, p, groups, member, members, j)
-    tm.wait(team, p, groups)
-    return p + 1
-
-
-@ti.func
-def _body_item_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, s: ti.template(),
-                     bodies: ti.template(), awake: ti.template(), motion: ti.template(),
-                     what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32) -> ti.i32:
+    """Phase p over the bodies (or the listed light ones), one ``what`` each. A POSE or GATHER_POSE
+    phase of a world with the gyroscopic term claims groups of eight bodies instead, gathered one
+    by one and then advanced together (pose_lanes.py). Returns the next phase."""
+    grouped = ti.static((what == POSE or what == GATHER_POSE) and motion & GYROSCOPIC)
     n = s.light_body_count[None] if ti.static(what == GATHER_LIGHT) else body_total(bodies, awake)
-    lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
+    items = n
+    if ti.static(grouped):
+        items = (n + LANES - 1) // LANES
+    lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
     while lo < hi:
         for k in range(lo, hi):
-            i = s.light_bodies[k] if ti.static(what == GATHER_LIGHT) else body_id(awake, k)
-            if ti.static(what == GATHER_LIGHT):
-                gather_body(s, bodies, dv_extra, i, True)
-            if ti.static(what == GATHER or what == GATHER_POSE):
-                gather_body(s, bodies, dv_extra, i)
-            if ti.static(what == GRAVITY):
-                apply_gravity(bodies, gravity, h, i)
-            if ti.static(what == POSE or what == GATHER_POSE):
-                advance_pose(bodies, motion, h, i)
+            if ti.static(grouped):
+                if ti.static(what == GATHER_POSE):
+                    for l in range(ti.min(LANES, n - k * LANES)):
+                        gather_body(s, bodies, dv_extra, body_id(awake, k * LANES + l))
+                advance_poses(lr.poses, bodies, awake, motion, h, k, n)
+            else:
+                _body_item(s, bodies, awake, motion, what, dv_extra, gravity, h, k)
         tm.finish(team, p, hi - lo)
-        lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
-    tm.wait(team, p, n)
+        lo, hi, j = tm.next_chunk(team, p, items, member, members, j)
+    tm.wait(team, p, items)
     return p + 1
+
+
+@ti.func
+def _body_item(s: ti.template(), bodies: ti.template(), awake: ti.template(), motion: ti.template(),
+               what: ti.template(), dv_extra: vec3, gravity: vec3, h: ti.f32, k: ti.i32):
+    """Item k of a body phase: what its body (the k-th of the loop, or of the light list) does."""
+    i = s.light_bodies[k] if ti.static(what == GATHER_LIGHT) else body_id(awake, k)
+    if ti.static(what == GATHER_LIGHT):
+        gather_body(s, bodies, dv_extra, i, True)
+    if ti.static(what == GATHER or what == GATHER_POSE):
+        gather_body(s, bodies, dv_extra, i)
+    if ti.static(what == GRAVITY):
+        apply_gravity(bodies, gravity, h, i)
+    if ti.static(what == POSE or what == GATHER_POSE):
+        advance_pose(bodies, motion, h, i)
 
 
 @ti.func
