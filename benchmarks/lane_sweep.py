@@ -7,11 +7,11 @@ Builds the scene's world, steps it ``--settle`` times, and then sweeps its conta
 same velocities with mass_splitting.sweep_block (one point per loop item, the path every launch
 but the CPU team's takes) and with point_lanes.sweep_point_lanes (eight points per item, the
 team's path), a biased and a relax sweep each, on one thread. Prints nanoseconds per point update
-(the best of five runs of ``--repeats`` sweeps) and checks that the two leave the same impulses
-and slots, bit for bit. The team's loop also copies the rows into groups once a step, and after
-each sweep every body gathers its slots (mass_splitting.gather_body): both timed too, the gather
-per pass over the bodies (benchmarks/substep_cost.py sets these parts beside a substep's cost in
-the running step).
+(the best of five runs of ``--repeats`` sweeps) and checks that the two leave the same impulses,
+separations (a relax sweep keeps them) and slots, bit for bit. The team's loop also copies the
+rows into groups once a step, and after each sweep every body gathers its slots
+(mass_splitting.gather_body): both timed too, the gather per pass over the bodies
+(benchmarks/substep_cost.py sets these parts beside a substep's cost in the running step).
 """
 
 import argparse
@@ -100,13 +100,13 @@ def main() -> None:
             b.rows.lam.from_numpy(lam0)
             b.rows.sep_now.from_numpy(sep0)
             fn(1, mode)
-            results.append((b.rows.lam.to_numpy()[:n], b.blocks.slots.to_numpy()))
-        (lam_p, slots_p), (lam_l, slots_l) = results
+            results.append((b.rows.lam.to_numpy()[:n], b.rows.sep_now.to_numpy()[:n], b.blocks.slots.to_numpy()))
+        (lam_p, sep_p, slots_p), (lam_l, sep_l, slots_l) = results
         groups = -(-n // LANES)
         lanes_kept = np.arange(groups * LANES) < n  # a last group's lanes past the count are never read
         kept = slots_p[:, :groups].transpose(0, 1, 3, 2)[:, lanes_kept.reshape(groups, LANES)]
         kept_l = slots_l[:, :groups].transpose(0, 1, 3, 2)[:, lanes_kept.reshape(groups, LANES)]
-        same &= np.array_equal(lam_p, lam_l) and np.array_equal(kept, kept_l)
+        same &= np.array_equal(lam_p, lam_l) and np.array_equal(sep_p, sep_l) and np.array_equal(kept, kept_l)
         t_point, t_lanes = best(by_point, mode), best(by_lanes, mode)
         print(f"{name:6s} sweep: point by point {t_point / n * 1e9:6.1f} ns per point, eight at a time "
               f"{t_lanes / n * 1e9:6.1f} ({t_point / t_lanes:.2f}x)")
@@ -114,7 +114,7 @@ def main() -> None:
     b.rows.sep_now.from_numpy(sep0)
     bodies = int(b.bodies.count[None])
     print(f"gather of the slots: {best(gather) * 1e6:6.1f} us per pass over the {bodies} bodies (two a substep)")
-    print(f"impulses and slots bit for bit the same: {same}")
+    print(f"impulses, separations and slots bit for bit the same: {same}")
 
 
 if __name__ == "__main__":

@@ -8,16 +8,17 @@ as one 8-wide instruction, provided the eight values come from one field element
 So the team (team_loop.iterate_shared) first copies the rows a sweep reads into ``LaneRows``, in
 groups of eight points (once a step: they change only between steps; ``lane_copy_phase``), and every
 sweep of per-point blocks then goes group by group (``lane_block_phase``), its slots stored in groups too
-(block_adjacency.store_slots). What differs from point to point (the normal row's target, a
-separation update or a manifold walk: normal_target; the fast-push test) is computed lane by lane
-through the scalar code; the accumulated impulses stay in ``rows.lam``, read and written lane by
-lane, as every other stage reads them.
+(block_adjacency.store_slots). A relax sweep's separations (two rotations a point) go eight at a
+time as well; what differs from point to point in a biased sweep (the spring's push-out, a capped
+row's manifold walk: normal_target; the fast-push test) is computed lane by lane through the
+scalar code; the accumulated impulses stay in ``rows.lam``, read and written lane by lane, as
+every other stage reads them.
 
 Every arithmetic operation is the scalar path's, in its order, on the same floats (``fast_math``
 is off, backend.py, so LLVM packs operations but never reorders them): the same bits as
 sweep_block (tests/test_solvers.py compares the team's launch with the others; the state hashes
 did not move). Rolling friction, the manifold blocks, the light bodies' extra sweeps and the
-restitution pass keep the scalar path. Measured: docs/bench.md, "Twelfth pass";
+restitution pass keep the scalar path. Measured: docs/bench.md, "Twelfth pass" and "Nineteenth pass";
 benchmarks/lane_sweep.py times this sweep against sweep_block.
 """
 
@@ -27,8 +28,8 @@ from ..lanes import LANES, lane_group_field
 from ..pose_lanes import POSE_ROWS
 from . import team as tm
 from .block_adjacency import PER_POINT
-from .contact_spring import RELAX_PUSH
-from .normal_target import BIASED, RELAX, normal_target, pushes_fast
+from .contact_spring import INV_H, RELAX_PUSH
+from .normal_target import BIASED, normal_target, pushes_fast
 from .rows import ROLLING, SLIDING
 from .split_scales import block_weights
 
@@ -51,13 +52,14 @@ class LaneRows:
     (pose_lanes.POSE_ROWS)."""
 
     def __init__(self, point_capacity: int, body_capacity: int):
-        tree = ti.FieldsBuilder()  # ~600 field nodes: a tree of their own (lanes.lane_group_field)
+        tree = ti.FieldsBuilder()  # ~710 field nodes: a tree of their own (lanes.lane_group_field)
         self.vectors = lane_group_field(12, point_capacity, builder=tree)
         self.ang_a = lane_group_field(9, point_capacity, builder=tree)
         self.ang_b = lane_group_field(9, point_capacity, builder=tree)
         self.resp_a = lane_group_field(9, point_capacity, builder=tree)
         self.resp_b = lane_group_field(9, point_capacity, builder=tree)
         self.scalars = lane_group_field(SCALARS, point_capacity, builder=tree)
+        self.anchors = lane_group_field(ANCHORS, point_capacity, builder=tree)
         self.target = lane_group_field(1, point_capacity, builder=tree)
         self.poses = lane_group_field(POSE_ROWS, body_capacity, builder=tree)  # pose_lanes.py
         self.tree = tree.finalize()
@@ -65,6 +67,12 @@ class LaneRows:
 
 NORMAL, T1, T2, INV_K = 0, 3, 6, 9
 """First rows of the four vectors in ``LaneRows.vectors``."""
+
+RA, RB, RA_BODY, RB_BODY, SEP = 0, 3, 6, 9, 12
+"""Rows of ``LaneRows.anchors``: the anchors r_a, r_b at the step start, the same in the bodies'
+frames, and the separation at the step start: what a relax sweep's separation now is made of
+(normal_target.current_separation)."""
+ANCHORS = 13
 
 
 def lanes_apply(kind: int, friction: int) -> bool:
@@ -84,6 +92,7 @@ def copy_group(lr: ti.template(), s: ti.template(), rows: ti.template(), c: ti.t
     ang_b = ti.Matrix.zero(ti.f32, 9, LANES)
     resp_a = ti.Matrix.zero(ti.f32, 9, LANES)
     resp_b = ti.Matrix.zero(ti.f32, 9, LANES)
+    anchors = ti.Matrix.zero(ti.f32, ANCHORS, LANES)
     for l in range(LANES):
         q = ti.min(g * LANES + l, n - 1)
         for e in ti.static(range(3)):
@@ -91,6 +100,10 @@ def copy_group(lr: ti.template(), s: ti.template(), rows: ti.template(), c: ti.t
             vectors[T1 + e, l] = rows.t1[q][e]
             vectors[T2 + e, l] = rows.t2[q][e]
             vectors[INV_K + e, l] = rows.inv_k[q][e]
+            anchors[RA + e, l] = rows.ra[q][e]
+            anchors[RB + e, l] = rows.rb[q][e]
+            anchors[RA_BODY + e, l] = rows.ra_body[q][e]
+            anchors[RB_BODY + e, l] = rows.rb_body[q][e]
             for r in ti.static(range(3)):
                 ang_a[r * 3 + e, l] = rows.ang_a[q][r, e]
                 ang_b[r * 3 + e, l] = rows.ang_b[q][r, e]
@@ -105,12 +118,14 @@ def copy_group(lr: ti.template(), s: ti.template(), rows: ti.template(), c: ti.t
         scalars[FRICTION, l] = c.friction[q]
         scalars[WEIGHT_A, l] = wa
         scalars[WEIGHT_B, l] = wb
+        anchors[SEP, l] = c.sep[q]
     lr.vectors[g] = vectors
     lr.scalars[g] = scalars
     lr.ang_a[g] = ang_a
     lr.ang_b[g] = ang_b
     lr.resp_a[g] = resp_a
     lr.resp_b[g] = resp_b
+    lr.anchors[g] = anchors
 
 
 @ti.func
@@ -128,23 +143,60 @@ def _dot(x0, x1, x2, y0, y1, y2):
 
 
 @ti.func
-def _per_lane(lr: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), biased: ti.i32,
-              g: ti.i32, n: ti.i32) -> ti.i32:
-    """The group's scalar parts, point by point: the normal rows' targets into ``lr.target`` (a
-    relax sweep also keeps the separation: normal_target) and, in a biased sweep, whether a row
-    pushes fast."""
+def _biased_targets(lr: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), g: ti.i32,
+                    n: ti.i32) -> ti.i32:
+    """The group's biased normal targets, point by point (normal_target: the spring's push-out,
+    a capped row's manifold walk) into ``lr.target``; returns whether a row pushes fast."""
     fast = 0
     for l in range(ti.min(LANES, n - g * LANES)):
         q = g * LANES + l
-        target = 0.0
-        if biased:
-            target, _ = normal_target(rows, c, bodies, q, BIASED)
-            if rows.params[RELAX_PUSH] > 0.0:
-                fast = ti.max(fast, pushes_fast(rows, c, q))
-        else:
-            target, _ = normal_target(rows, c, bodies, q, RELAX)
+        target, _ = normal_target(rows, c, bodies, q, BIASED)
+        if rows.params[RELAX_PUSH] > 0.0:
+            fast = ti.max(fast, pushes_fast(rows, c, q))
         lr.target[g][0, l] = target
     return fast
+
+
+@ti.func
+def _rotate(w: lanes, x: lanes, y: lanes, z: lanes, v):
+    """math3d.quat_rotate on eight lanes, its operations in its order."""
+    t = [2.0 * (y * v[2] - z * v[1]), 2.0 * (z * v[0] - x * v[2]), 2.0 * (x * v[1] - y * v[0])]
+    return [v[0] + w * t[0] + (y * t[2] - z * t[1]), v[1] + w * t[1] + (z * t[0] - x * t[2]),
+            v[2] + w * t[2] + (x * t[1] - y * t[0])]
+
+
+@ti.func
+def _relax_targets(lr: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), nrm, g: ti.i32,
+                   n: ti.i32) -> lanes:
+    """The group's relax normal targets on eight lanes: each point's separation now
+    (normal_target.current_separation, its operations in its order; kept in ``rows.sep_now`` for
+    the next biased sweep), a gap's s / h, else 0. Point by point, the two rotations were half of a
+    relax sweep's time (docs/bench.md, "Nineteenth pass")."""
+    anchors = lr.anchors[g]
+    moved_a = [lanes(0.0), lanes(0.0), lanes(0.0)]
+    moved_b = [lanes(0.0), lanes(0.0), lanes(0.0)]
+    rot_a = [lanes(0.0), lanes(0.0), lanes(0.0), lanes(0.0)]
+    rot_b = [lanes(0.0), lanes(0.0), lanes(0.0), lanes(0.0)]
+    for l in ti.static(range(LANES)):
+        q = ti.min(g * LANES + l, n - 1)  # a lane past the count works on the last point, unkept
+        a = c.body_a[q]
+        b = c.body_b[q]
+        for e in ti.static(range(3)):
+            moved_a[e][l] = bodies.moved[a][e]
+            moved_b[e][l] = bodies.moved[b][e]
+        for e in ti.static(range(4)):
+            rot_a[e][l] = bodies.rot[a][e]
+            rot_b[e][l] = bodies.rot[b][e]
+    body_a = [_row(anchors, RA_BODY + e) for e in ti.static(range(3))]
+    body_b = [_row(anchors, RB_BODY + e) for e in ti.static(range(3))]
+    turned_a = _rotate(rot_a[0], rot_a[1], rot_a[2], rot_a[3], body_a)
+    turned_b = _rotate(rot_b[0], rot_b[1], rot_b[2], rot_b[3], body_b)
+    da = [moved_a[e] + turned_a[e] - _row(anchors, RA + e) for e in ti.static(range(3))]
+    db = [moved_b[e] + turned_b[e] - _row(anchors, RB + e) for e in ti.static(range(3))]
+    sep = _row(anchors, SEP) + _dot(nrm[0], nrm[1], nrm[2], db[0] - da[0], db[1] - da[1], db[2] - da[2])
+    for l in range(ti.min(LANES, n - g * LANES)):
+        rows.sep_now[g * LANES + l] = sep[l]
+    return ti.select(sep > 0.0, sep * rows.params[INV_H], 0.0)
 
 
 @ti.func
@@ -156,7 +208,6 @@ def sweep_point_lanes(lr: ti.template(), s: ti.template(), rows: ti.template(), 
     the weighted slots). Returns 1 when a biased row of them pushes fast, else 0. The kind of
     sweep is read at run time, so that the team's loop holds one copy of this code (its compile
     time: docs/bench.md, "Twelfth pass"): the biased row's preload is a lane-wise choice."""
-    fast = _per_lane(lr, rows, c, bodies, biased, g, n)
     va = [lanes(0.0), lanes(0.0), lanes(0.0)]
     wa = [lanes(0.0), lanes(0.0), lanes(0.0)]
     vb = [lanes(0.0), lanes(0.0), lanes(0.0)]
@@ -214,7 +265,13 @@ def sweep_point_lanes(lr: ti.template(), s: ti.template(), rows: ti.template(), 
         lam[1] = f1
         lam[2] = f2
     # the normal row
-    target = _row(lr.target[g], 0)
+    fast = 0
+    target = lanes(0.0)
+    if biased:
+        fast = _biased_targets(lr, rows, c, bodies, g, n)
+        target = _row(lr.target[g], 0)
+    else:
+        target = _relax_targets(lr, rows, c, bodies, nrm, g, n)
     ja0 = [_row(ang_a, e) for e in ti.static(range(3))]
     jb0 = [_row(ang_b, e) for e in ti.static(range(3))]
     vn = (_dot(vb[0] - va[0], vb[1] - va[1], vb[2] - va[2], nrm[0], nrm[1], nrm[2])
