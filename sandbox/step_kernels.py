@@ -32,7 +32,7 @@ from .solvers.block_adjacency import build_adjacency_loops
 from .solvers.mass_splitting import update_support_loops
 from .solvers.rows import prepare_row, respond_row
 from .solvers.substep import iterate_in_order_loops
-from .solvers.team_loop import iterate_shared_loops
+from .solvers.team_loop import goes_in_lanes, iterate_shared_loops
 from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, OVERLAP_DEPTH, PAIR_REUSE_MARGIN, RELAX_SWEEPS,
                            RELAXATION, REUSE_D2, REUSE_SIN, SLEEP_ANGULAR, SLEEP_LINEAR, SLEEP_TIME, SLOP, STEP,
                            SUBSTEP, SUBSTEPS, WARM_FACTOR)
@@ -59,11 +59,12 @@ def begin_and_collide(b: ti.template(), speculative: ti.template(), kinds: ti.te
 @ti.func
 def prepare_step_loops(b: ti.template(), blk: ti.template(), match_distance: ti.f32, warm_factor: ti.f32,
                        kind: ti.template(), mode: ti.template(), omega: ti.f32, split: ti.template(),
-                       friction: ti.template(), dispatch: ti.template()):
+                       friction: ti.template(), dispatch: ti.template(), responds: ti.template() = True):
     """Rows and warm-start matching in one loop over the points, the schedule's adjacency
     (its split counts read both), then the row responses and springs (which read the
     split scales): each stage reads only its own point's earlier results, so these are
-    the bits of the separate launches, in one dispatch."""
+    the bits of the separate launches, in one dispatch. ``responds`` False: the team's lane
+    copy works out the responses (team_loop.iterate_shared_loops)."""
     clear_impacts(b.rows)
     ti.loop_config(serialize=ti.static(dispatch.serial))
     for q in range(b.contacts.count[None]):
@@ -71,9 +72,10 @@ def prepare_step_loops(b: ti.template(), blk: ti.template(), match_distance: ti.
         match_contact(b.history, b.contacts, b.rows, match_distance, warm_factor, q)
     list_carry_rows(b.rows, b.contacts)
     build_adjacency_loops(blk, b.contacts, b.bodies, b.rows, kind, mode, omega)
-    ti.loop_config(serialize=ti.static(dispatch.serial))
-    for q in range(b.contacts.count[None]):
-        respond_row(b.rows, b.contacts, b.bodies, blk, split, friction, q)
+    if ti.static(responds):
+        ti.loop_config(serialize=ti.static(dispatch.serial))
+        for q in range(b.contacts.count[None]):
+            respond_row(b.rows, b.contacts, b.bodies, blk, split, friction, q)
 
 
 @ti.kernel
@@ -158,12 +160,15 @@ def solve_step_shared(b: ti.template(), sw: ti.template(), team: ti.template(), 
     """``solve_step_in_order`` for a world whose iteration loop the CPU threads share
     (team_loop.iterate_shared): ``prepare_step``'s parallel loops, the team's loop and
     ``finish_step``'s parallel loops, one after another as the three launches ran them, so the
-    same bits, one launch (each ~0.1-0.3 ms of Python). ``team``, ``members``: Schedule.team."""
+    same bits, one launch (each ~0.1-0.3 ms of Python). ``team``, ``members``: Schedule.team.
+    Where the team's sweeps go eight points at a time, its lane copy works out the rows'
+    responses on every thread (the same values, from the same inputs: the same bits)."""
     f, n = ti.static(b.scalars.f, b.scalars.i)
+    in_team = ti.static(goes_in_lanes(sw.visit, sw.kind, sw.friction))
     prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], sw.kind, sw.mode, f[RELAXATION], sw.split,
-                       sw.friction, dispatch)
+                       sw.friction, dispatch, not in_team)
     iterate_shared_loops(team, b, sw.kind, sw.visit, sw.friction, sw.warm, sw.track, awake, sw.motion, f[SUBSTEP],
-                         n[SUBSTEPS], n[BIASED_SWEEPS], n[RELAX_SWEEPS], members)
+                         n[SUBSTEPS], n[BIASED_SWEEPS], n[RELAX_SWEEPS], members, in_team, sw.split)
     finish_step_loops(b, sw.kind, n[SUBSTEPS], awake, f[STEP], f[SLEEP_LINEAR], f[SLEEP_ANGULAR], f[SLEEP_TIME],
                       dispatch)
 

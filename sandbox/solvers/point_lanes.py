@@ -30,7 +30,7 @@ from . import team as tm
 from .block_adjacency import PER_POINT
 from .contact_spring import INV_H, RELAX_PUSH
 from .normal_target import BIASED, normal_target, pushes_fast
-from .rows import ROLLING, SLIDING
+from .rows import ROLLING, SLIDING, respond_row
 from .split_scales import block_weights
 
 lanes = ti.types.vector(LANES, ti.f32)
@@ -334,13 +334,20 @@ def lane_block_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti
 
 @ti.func
 def lane_copy_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, lr: ti.template(),
-                    s: ti.template(), rows: ti.template(), c: ti.template()) -> ti.i32:
-    """Phase p of the team's loop (solvers/team.py): this step's rows into ``lr``'s groups."""
+                    s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
+                    responds: ti.template(), split: ti.template(), friction: ti.template()) -> ti.i32:
+    """Phase p of the team's loop (solvers/team.py): this step's rows into ``lr``'s groups; with
+    ``responds``, each group's points' responses first (rows.respond_row, ``split`` its switch:
+    the step's set-up left them to the team, whose threads share them and copy them while they
+    are in cache)."""
     n = s.block_count[None]
     items = (n + LANES - 1) // LANES
     lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
     while lo < hi:
         for g in range(lo, hi):
+            if ti.static(responds):
+                for l in range(ti.min(LANES, n - g * LANES)):
+                    respond_row(rows, c, bodies, s, split, friction, g * LANES + l)
             copy_group(lr, s, rows, c, g, n)
         tm.finish(team, p, hi - lo)
         lo, hi, j = tm.next_chunk(team, p, items, member, members, j)

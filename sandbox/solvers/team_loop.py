@@ -27,6 +27,12 @@ vec3 = ti.math.vec3
 
 
 
+def goes_in_lanes(schedule: int, kind: int, friction: int) -> bool:
+    """Whether the team's sweeps go eight points at a time (point_lanes.py): then its lane copy
+    can also work out the rows' responses (``iterate_shared_loops``'s ``responds``)."""
+    return schedule == BLOCKS and lanes_apply(kind, friction)
+
+
 def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int, ratio: int = 0) -> int:
     """Most phases ``iterate_shared`` walks (its team needs counters per phase; the Jacobi
     family's substeps may sweep light bodies' blocks ``ratio`` times more and advance the poses
@@ -247,13 +253,13 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
                  c: ti.template(), bodies: ti.template(), col: ti.template(), kind: ti.template(),
                  schedule: ti.template(), friction: ti.template(), warm: ti.template(), track: ti.template(),
                  awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
-                 sweeps: ti.i32, relax: ti.i32):
+                 sweeps: ti.i32, relax: ti.i32, responds: ti.template(), split: ti.template()):
     """What one thread runs: every phase of ``iterate_in_order``, in its order."""
     fold = ti.static(folds_warm_start(schedule, warm))
-    grouped = ti.static(schedule == BLOCKS and lanes_apply(kind, friction))  # point_lanes.py
+    grouped = ti.static(goes_in_lanes(schedule, kind, friction))
     p = 0
     if ti.static(grouped):
-        p = lane_copy_phase(team, p, member, members, lr, s, rows, c)
+        p = lane_copy_phase(team, p, member, members, lr, s, rows, c, bodies, responds, split, friction)
     for it in range(iterations):
         first = 1
         if ti.static(fold):
@@ -299,18 +305,21 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
 def iterate_shared_loops(team: ti.template(), b: ti.template(), kind: ti.template(), schedule: ti.template(),
                          friction: ti.template(), warm: ti.template(), track: ti.template(), awake: ti.template(),
                          motion: ti.template(), h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32,
-                         members: ti.i32):
+                         members: ti.i32, responds: ti.template() = False, split: ti.template() = False):
     """All ``iterations`` substeps of ``h``, shared by ``members`` threads, after clearing every
     counter of the team (sized for at least ``shared_phase_bound`` x ``members``, Schedule.team):
-    a serial loop, then one top-level loop that starts a member per thread."""
+    a serial loop, then one top-level loop that starts a member per thread. ``responds`` (only
+    where ``goes_in_lanes``): the rows' responses (rows.respond_row, ``split`` its switch) are
+    worked out in the lane copy, on every thread, instead of by the step's set-up."""
     ti.static_assert(schedule != PGS, "serial PGS has nothing to share")
+    ti.static_assert(not responds or goes_in_lanes(schedule, kind, friction), "only the lane copy responds")
     s, rows, c, bodies, col = b.blocks, b.rows, b.contacts, b.bodies, b.coloring
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
     tm.reset_loop(team, ti.static(team.claimed.shape[0]))
     for i in range(members * tm.TASK_ITEMS):
         if i % tm.TASK_ITEMS == 0:
             _team_member(team, i // tm.TASK_ITEMS, members, b.lanes, s, rows, c, bodies, col, kind, schedule, friction,
-                         warm, track, awake, motion, gravity, h, iterations, sweeps, relax)
+                         warm, track, awake, motion, gravity, h, iterations, sweeps, relax, responds, split)
 
 
 @ti.kernel
