@@ -6,7 +6,8 @@ the points of a sweep. Written point by point (mass_splitting.sweep_block), LLVM
 point at a time; written as one expression over eight consecutive points' values, it runs each
 as one 8-wide instruction, provided the eight values come from one field element (lanes.py).
 So the team (team_loop.iterate_shared) first copies the rows a sweep reads into ``LaneRows``, in
-groups of eight points (once a step: they change only between steps; ``lane_copy_phase``), and every
+groups of eight points (once a step: they change only between steps; ``lane_copy_phase``, which in
+the one-launch step also works out the responses it copies: rows.respond_row), and every
 sweep of per-point blocks then goes group by group (``lane_block_phase``), its slots stored in groups too
 (block_adjacency.store_slots). A relax sweep's separations (two rotations a point) go eight at a
 time as well; what differs from point to point in a biased sweep (the spring's push-out, a capped
