@@ -64,11 +64,11 @@ def prepare_step_loops(b: ti.template(), blk: ti.template(), match_distance: ti.
     (its split counts read both), then the row responses and springs (which read the
     split scales): each stage reads only its own point's earlier results, so these are
     the bits of the separate launches, in one dispatch. ``responds`` False: the team's lane
-    copy works out the responses (team_loop.iterate_shared_loops)."""
+    copy works out the response shares and the responses (team_loop.iterate_shared_loops)."""
     clear_impacts(b.rows)
     ti.loop_config(serialize=ti.static(dispatch.serial))
     for q in range(b.contacts.count[None]):
-        prepare_row(b.rows, b.contacts, b.bodies, q)
+        prepare_row(b.rows, b.contacts, b.bodies, q, responds)
         match_contact(b.history, b.contacts, b.rows, match_distance, warm_factor, q)
     list_carry_rows(b.rows, b.contacts)
     build_adjacency_loops(blk, b.contacts, b.bodies, b.rows, kind, mode, omega)
@@ -161,8 +161,8 @@ def solve_step_shared(b: ti.template(), sw: ti.template(), team: ti.template(), 
     (team_loop.iterate_shared): ``prepare_step``'s parallel loops, the team's loop and
     ``finish_step``'s parallel loops, one after another as the three launches ran them, so the
     same bits, one launch (each ~0.1-0.3 ms of Python). ``team``, ``members``: Schedule.team.
-    Where the team's sweeps go eight points at a time, its lane copy works out the rows'
-    responses on every thread (the same values, from the same inputs: the same bits)."""
+    Where the team's sweeps go eight points at a time, its lane copy works out the rows' response
+    shares and responses on every thread (the same values, from the same inputs: the same bits)."""
     f, n = ti.static(b.scalars.f, b.scalars.i)
     in_team = ti.static(goes_in_lanes(sw.visit, sw.kind, sw.friction))
     prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], sw.kind, sw.mode, f[RELAXATION], sw.split,

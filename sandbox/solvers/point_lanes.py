@@ -7,7 +7,7 @@ point at a time; written as one expression over eight consecutive points' values
 as one 8-wide instruction, provided the eight values come from one field element (lanes.py).
 So the team (team_loop.iterate_shared) first copies the rows a sweep reads into ``LaneRows``, in
 groups of eight points (once a step: they change only between steps; ``lane_copy_phase``, which in
-the one-launch step also works out the responses it copies: rows.respond_row), and every
+the one-launch step also works out the responses it copies: rows.share_row, rows.respond_row), and every
 sweep of per-point blocks then goes group by group (``lane_block_phase``), its slots stored in groups too
 (block_adjacency.store_slots). A relax sweep's separations (two rotations a point) go eight at a
 time as well; what differs from point to point in a biased sweep (the spring's push-out, a capped
@@ -31,7 +31,7 @@ from . import team as tm
 from .block_adjacency import PER_POINT
 from .contact_spring import INV_H, RELAX_PUSH
 from .normal_target import BIASED, normal_target, pushes_fast
-from .rows import ROLLING, SLIDING, respond_row
+from .rows import ROLLING, SLIDING, respond_row, share_row
 from .split_scales import block_weights
 
 lanes = ti.types.vector(LANES, ti.f32)
@@ -338,9 +338,9 @@ def lane_copy_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.
                     s: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(),
                     responds: ti.template(), split: ti.template(), friction: ti.template()) -> ti.i32:
     """Phase p of the team's loop (solvers/team.py): this step's rows into ``lr``'s groups; with
-    ``responds``, each group's points' responses first (rows.respond_row, ``split`` its switch:
-    the step's set-up left them to the team, whose threads share them and copy them while they
-    are in cache)."""
+    ``responds``, each group's points' response shares and responses first (rows.share_row,
+    rows.respond_row, ``split`` its switch: the step's set-up left them to the team, whose threads
+    share them and copy them while they are in cache)."""
     n = s.block_count[None]
     items = (n + LANES - 1) // LANES
     lo, hi, j = tm.next_chunk(team, p, items, member, members, 0)
@@ -348,6 +348,7 @@ def lane_copy_phase(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.
         for g in range(lo, hi):
             if ti.static(responds):
                 for l in range(ti.min(LANES, n - g * LANES)):
+                    share_row(rows, c, bodies, g * LANES + l)
                     respond_row(rows, c, bodies, s, split, friction, g * LANES + l)
             copy_group(lr, s, rows, c, g, n)
         tm.finish(team, p, hi - lo)

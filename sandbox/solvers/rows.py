@@ -125,8 +125,29 @@ def _share(inv_mass: ti.f32, inv_inertia: ti.template(), r: vec3, e: vec3) -> ti
 
 
 @ti.func
-def prepare_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32):
-    """Point q's anchors, tangent basis, unit response shares and approach speed."""
+def share_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32):
+    """Point q's unit response shares k_a, k_b for (n, t1, t2), from its anchors and tangents
+    (prepare_row's; respond_row and the impact clamp read them, nothing before them in a step)."""
+    a = c.body_a[q]
+    b = c.body_b[q]
+    n = c.normal[q]
+    ra = rows.ra[q]
+    rb = rows.rb[q]
+    t1 = rows.t1[q]
+    t2 = rows.t2[q]
+    ima = bodies.inv_mass[a]
+    imb = bodies.inv_mass[b]
+    ia = bodies.inv_inertia_world[a]
+    ib = bodies.inv_inertia_world[b]
+    rows.k_a[q] = vec3(_share(ima, ia, ra, n), _share(ima, ia, ra, t1), _share(ima, ia, ra, t2))
+    rows.k_b[q] = vec3(_share(imb, ib, rb, n), _share(imb, ib, rb, t1), _share(imb, ib, rb, t2))
+
+
+@ti.func
+def prepare_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), q: ti.i32,
+                shares: ti.template() = True):
+    """Point q's anchors, tangent basis, unit response shares (``shares`` False: left to the
+    team's lane copy, team_loop.iterate_shared_loops) and approach speed."""
     a = c.body_a[q]
     b = c.body_b[q]
     p = c.point[q]
@@ -134,18 +155,14 @@ def prepare_row(rows: ti.template(), c: ti.template(), bodies: ti.template(), q:
     ra = p - bodies.pos[a]
     rb = p - bodies.pos[b]
     t1, t2 = plane_basis(n)
-    ima = bodies.inv_mass[a]
-    imb = bodies.inv_mass[b]
-    ia = bodies.inv_inertia_world[a]
-    ib = bodies.inv_inertia_world[b]
     rows.ra[q] = ra
     rows.rb[q] = rb
     rows.ra_body[q] = quat_rotate_inv(bodies.rot[a], ra)
     rows.rb_body[q] = quat_rotate_inv(bodies.rot[b], rb)
     rows.t1[q] = t1
     rows.t2[q] = t2
-    rows.k_a[q] = vec3(_share(ima, ia, ra, n), _share(ima, ia, ra, t1), _share(ima, ia, ra, t2))
-    rows.k_b[q] = vec3(_share(imb, ib, rb, n), _share(imb, ib, rb, t1), _share(imb, ib, rb, t2))
+    if ti.static(shares):
+        share_row(rows, c, bodies, q)
     v_rel = bodies.lin_vel[b] + cross(bodies.ang_vel[b], rb) - bodies.lin_vel[a] - cross(bodies.ang_vel[a], ra)
     rows.approach[q] = dot(v_rel, n)
     note_impact(rows, c, q)
