@@ -98,7 +98,7 @@ class BufferSet:
 
     def lane_rows(self) -> LaneRows:
         """The rows in groups of eight that the CPU team's sweeps read (solvers/point_lanes.py),
-        allocated on the first call: ~57 floats a point, 19 a body, and ~600 field nodes (0.08 s to declare on
+        allocated on the first call: ~70 floats a point, 19 a body, and ~710 field nodes (0.08 s to declare on
         the 2-core VM) that a world on CUDA, a small world's one-thread loop and serial PGS never
         touch. Schedule.team calls it before every launch of the team, so no kernel that reads it
         compiles without it; it does so for every schedule the team runs (pgs-colored and block

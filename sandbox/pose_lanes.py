@@ -98,8 +98,9 @@ def _quat_normalize(q):
 
 
 @ti.func
-def _quat_rotate(q, v):
-    """math3d.quat_rotate."""
+def lane_quat_rotate(q, v):
+    """math3d.quat_rotate on eight lanes, its operations in its order (also the relax sweep's
+    separations, solvers/point_lanes.py)."""
     x, y, z = q[1], q[2], q[3]
     t = [2.0 * (y * v[2] - z * v[1]), 2.0 * (z * v[0] - x * v[2]), 2.0 * (x * v[1] - y * v[0])]
     c = [y * t[2] - z * t[1], z * t[0] - x * t[2], x * t[1] - y * t[0]]
@@ -108,7 +109,7 @@ def _quat_rotate(q, v):
 
 @ti.func
 def _quat_rotate_inv(q, v):
-    return _quat_rotate([q[0], -q[1], -q[2], -q[3]], v)
+    return lane_quat_rotate([q[0], -q[1], -q[2], -q[3]], v)
 
 
 @ti.func
@@ -187,7 +188,7 @@ def advance_poses(out: ti.template(), bodies: ti.template(), awake: ti.template(
     rot = _quat_normalize([lanes(1.0), half_h * wn[0], half_h * wn[1], half_h * wn[2]])
     l1 = _quat_rotate_inv(rot, l0)
     q1 = _quat_normalize(_quat_mul(q, rot))
-    w1 = _quat_rotate(q1, _mat_vec(inv_inertia, l1))
+    w1 = lane_quat_rotate(q1, _mat_vec(inv_inertia, l1))
     rows = moved_after + s + err + q1 + w1 + v
     out[g] = ti.Matrix.rows(rows)
     new = out[g]

@@ -26,7 +26,7 @@ benchmarks/lane_sweep.py times this sweep against sweep_block.
 import taichi as ti
 
 from ..lanes import LANES, lane_group_field
-from ..pose_lanes import POSE_ROWS
+from ..pose_lanes import POSE_ROWS, lane_quat_rotate
 from . import team as tm
 from .block_adjacency import PER_POINT
 from .contact_spring import INV_H, RELAX_PUSH
@@ -159,14 +159,6 @@ def _biased_targets(lr: ti.template(), rows: ti.template(), c: ti.template(), bo
 
 
 @ti.func
-def _rotate(w: lanes, x: lanes, y: lanes, z: lanes, v):
-    """math3d.quat_rotate on eight lanes, its operations in its order."""
-    t = [2.0 * (y * v[2] - z * v[1]), 2.0 * (z * v[0] - x * v[2]), 2.0 * (x * v[1] - y * v[0])]
-    return [v[0] + w * t[0] + (y * t[2] - z * t[1]), v[1] + w * t[1] + (z * t[0] - x * t[2]),
-            v[2] + w * t[2] + (x * t[1] - y * t[0])]
-
-
-@ti.func
 def _relax_targets(lr: ti.template(), rows: ti.template(), c: ti.template(), bodies: ti.template(), nrm, g: ti.i32,
                    n: ti.i32) -> lanes:
     """The group's relax normal targets on eight lanes: each point's separation now
@@ -190,8 +182,8 @@ def _relax_targets(lr: ti.template(), rows: ti.template(), c: ti.template(), bod
             rot_b[e][l] = bodies.rot[b][e]
     body_a = [_row(anchors, RA_BODY + e) for e in ti.static(range(3))]
     body_b = [_row(anchors, RB_BODY + e) for e in ti.static(range(3))]
-    turned_a = _rotate(rot_a[0], rot_a[1], rot_a[2], rot_a[3], body_a)
-    turned_b = _rotate(rot_b[0], rot_b[1], rot_b[2], rot_b[3], body_b)
+    turned_a = lane_quat_rotate(rot_a, body_a)
+    turned_b = lane_quat_rotate(rot_b, body_b)
     da = [moved_a[e] + turned_a[e] - _row(anchors, RA + e) for e in ti.static(range(3))]
     db = [moved_b[e] + turned_b[e] - _row(anchors, RB + e) for e in ti.static(range(3))]
     sep = _row(anchors, SEP) + _dot(nrm[0], nrm[1], nrm[2], db[0] - da[0], db[1] - da[1], db[2] - da[2])
