@@ -9,6 +9,16 @@ that spans the largest triangle with those two, then the point that adds the
 most area outside that triangle. The four points bound almost all of the
 patch, so the solver can resist any torque the full patch could.
 
+One change to that rule: each later pass divides a candidate's lever arm or area
+by 1 + g / ``REDUCE_GAP_LENGTH``, g its gap above the deepest point (above
+touching, when the deepest touches). Where every candidate touches nothing
+changes; where a face is tilted, a corner about to touch beats one high up in
+the speculative margin, which cannot carry load within the step. By area alone
+a box tilted across another's edge kept a point 18.7 mm up and dropped the
+corner 0.7 mm from touching that it rocked onto, which then arrived ~2 mm deep,
+was pushed back out, and the box rocked for good under every solver
+(tolerances.py).
+
 Why a stream and not a buffer: local arrays in Taichi functions make the
 compiler's IR passes grow with the square of their total size (measured with
 Taichi's advanced optimisation on: a pair of 64-point clip buffers cost
@@ -29,7 +39,7 @@ import taichi as ti
 
 from ..math3d import cross, dot, quat_rotate
 from .manifold import MAX_POINTS, manifold_add
-from .tolerances import REDUCE_AREA_EPS
+from .tolerances import REDUCE_AREA_EPS, REDUCE_GAP_LENGTH
 
 vec3 = ti.math.vec3
 vec4 = ti.math.vec4
@@ -84,6 +94,13 @@ def _choose(r: ti.template(), k: ti.template(), p: vec3, sep: ti.f32, feature: t
 
 
 @ti.func
+def _nearness(r: ti.template(), sep: ti.f32) -> ti.f32:
+    """1 for a candidate as deep as the deepest point (or touching), falling with its gap above."""
+    gap = ti.max(sep - ti.max(r.chosen_sep[0], 0.0), 0.0)
+    return 1.0 / (1.0 + gap / REDUCE_GAP_LENGTH)
+
+
+@ti.func
 def reducer_visit(r: ti.template(), pass_index: ti.i32, p: vec3, sep: ti.f32, feature: ti.i32, normal: vec3):
     """Feed one candidate (point, separation, feature id) of pass ``pass_index``."""
     if pass_index == 0:
@@ -99,12 +116,14 @@ def reducer_visit(r: ti.template(), pass_index: ti.i32, p: vec3, sep: ti.f32, fe
     elif pass_index == 1:  # farthest from the deepest, in the contact plane
         d = p - _row(r.chosen, 0)
         d -= normal * dot(d, normal)
-        if dot(d, d) > r.score[1]:
-            _choose(r, 1, p, sep, feature, dot(d, d))
+        score = dot(d, d) * _nearness(r, sep)
+        if score > r.score[1]:
+            _choose(r, 1, p, sep, feature, score)
     elif pass_index == 2:  # largest triangle with those two, either side
         s = _area(_row(r.chosen, 0), _row(r.chosen, 1), p, normal)
-        if r.score[1] > REDUCE_AREA_EPS and ti.abs(s) > r.score[2]:
-            _choose(r, 2, p, sep, feature, ti.abs(s))
+        score = ti.abs(s) * _nearness(r, sep)
+        if r.score[1] > REDUCE_AREA_EPS and score > r.score[2]:
+            _choose(r, 2, p, sep, feature, score)
             r.sign = 1.0 if s > 0.0 else -1.0
     else:  # most area added outside that triangle
         if r.score[2] > REDUCE_AREA_EPS:
@@ -113,6 +132,7 @@ def reducer_visit(r: ti.template(), pass_index: ti.i32, p: vec3, sep: ti.f32, fe
             p2 = _row(r.chosen, 2)
             added = ti.max(-r.sign * _area(p0, p1, p, normal),
                            ti.max(-r.sign * _area(p1, p2, p, normal), -r.sign * _area(p2, p0, p, normal)))
+            added *= _nearness(r, sep)
             if added > r.score[3]:
                 _choose(r, 3, p, sep, feature, added)
 

@@ -88,6 +88,16 @@ REDUCE_AREA_EPS = 1.0e-10
 square) to be worth a point; below, the points are collinear or coincident and
 another one carries no extra moment arm."""
 
+REDUCE_GAP_LENGTH = 1.0e-3
+"""[m] Manifold reduction: after the deepest point, a candidate's lever arm or area counts
+1 / (1 + g / REDUCE_GAP_LENGTH), g its separation above the deepest point's (or above touching,
+when the deepest touches). By area alone, a box tilted across another's edge kept a point 18.7 mm
+up in the speculative margin and dropped the corner 0.7 mm from touching that it rocked onto; the
+corner arrived 1.7-2.3 mm deep a few steps later, was pushed back out, and the box rocked for good
+(0.1 m/s under every solver; docs/method-notes.md "A rocking box: the manifold's reduction").
+0.25-4 mm stopped it there, 10 mm did not; 1 mm is twice the default slop. Points that all touch
+keep the plain area rule: their gaps are zero."""
+
 CLIP_EPS = 1.0e-4
 """[m] Face clipping: a point this close to a side plane (or to an incident
 edge) counts as lying on it, and an edge must cross a plane by more than this
