@@ -65,6 +65,10 @@ def restore(buf, snap: SleepSnapshot, body_map: np.ndarray, shape_map: np.ndarra
         full[:n_new] = values
         field.from_numpy(full)
     restart_after_rebuild(sl, buf.shapes, buf.bodies, buf.bp, buf.errors, margin)
+    # a snapshot is taken only of a world that sleeps (edits.Edits._sleep_snapshot). New buffers
+    # start with resting 0, which labels no island: the next step counted no awake island, so
+    # the stepper took every later step as idle and a world whose buffers grew froze mid-fall
+    sl.resting[None] = 1
     sl.status[AWAKE_ISLANDS] = snap.awake_islands
     note_grid(sl)
 
