@@ -1,4 +1,4 @@
-"""Behaviour on the shipped scenes: stacks stand, piles settle."""
+"""Behaviour on the shipped scenes: stacks stand, piles settle; and a box lying tilted across two others comes to rest."""
 
 import numpy as np
 import pytest
