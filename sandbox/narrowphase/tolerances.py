@@ -27,11 +27,12 @@ larger by this fraction of |sep| plus SAT_ABS_TOL (Gregorius: 0.90 * sep). Edge
 contacts give one point, face contacts up to four, so near ties go to faces."""
 
 SAT_ABS_TOL = 1.0e-3
-"""[m] Absolute part of the two biases above: a fifth of the default solver slop
-(5 mm). Differences smaller than this lie inside the penetration the solver
-tolerates anyway, so changing features for them gains nothing; the resting
-box-on-box stability test perturbs by 1e-5 m / 1e-4 rad, i.e. about 5e-5 m of
-separation difference, well inside."""
+"""[m] Absolute part of the two biases above. Changing features for a difference this small
+gains nothing, and the resting box-on-box stability test perturbs by 1e-5 m / 1e-4 rad, about
+5e-5 m of separation difference, well inside. (Written as "a fifth of the default slop" when
+that was 5 mm; it is 0.5 mm, so a switch of features may deepen a contact by up to
+twice the slop. On the rocking box of docs/method-notes.md "A rocking box" the biases were not
+the cause: without them it rocked harder.)"""
 
 INCIDENT_TIE_COS = 1.0e-3
 """[1] Two incident-face candidates whose normals' dot products with the
