@@ -68,7 +68,7 @@ def prepare_step_loops(b: ti.template(), blk: ti.template(), match_distance: ti.
     clear_impacts(b.rows)
     ti.loop_config(serialize=ti.static(dispatch.serial))
     for q in range(b.contacts.count[None]):
-        prepare_row(b.rows, b.contacts, b.bodies, q, responds)
+        prepare_row(b.rows, b.contacts, b.bodies, q, shares=responds)
         match_contact(b.history, b.contacts, b.rows, match_distance, warm_factor, q)
     list_carry_rows(b.rows, b.contacts)
     build_adjacency_loops(blk, b.contacts, b.bodies, b.rows, kind, mode, omega)
