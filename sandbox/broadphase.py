@@ -93,7 +93,8 @@ class Broadphase:
         # every shape searches
         self.listed = ti.field(ti.i32, ())
         self.searched = ti.field(ti.i32, ())  # shapes that searched, last pair search
-        # 1 while this step's grid must be built: a shape refitted its enlarged bounds (pair reuse)
+        # shapes that refitted their enlarged bounds this step (pair reuse): the grid is built while
+        # above 0; pair_search._choose_searches reads the count and clears it
         self.refits = ti.field(ti.i32, ())
         self.old_b = ti.field(ti.i32, self.pair_capacity if reuses_pairs else 1)  # last step's partners
         self.old_start = ti.field(ti.i32, sc + 1 if reuses_pairs else 1)  # and each slot's first
@@ -234,7 +235,7 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
                 refit = 1
             bp.refitted[i] = refit
             if refit:
-                ti.atomic_max(bp.refits[None], 1)
+                ti.atomic_add(bp.refits[None], 1)
                 lo -= grow
                 hi += grow
                 bp.aabb_min[i] = lo
@@ -278,8 +279,6 @@ def build_dynamic_grid_loops(bp: ti.template(), shapes: ti.template(), bodies: t
         bp.sorted_shape[slot] = bp.entry_shape[e]
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for h in range(bp.hash_size * _grid_changed(bp)):
-        if h == 0:
-            bp.refits[None] = 0  # read by every loop range above, none below
         e0 = bp.bucket_start[h]
         e1 = ti.min(bp.bucket_start[h + 1], bp.entry_capacity)
         sort_range(bp.sorted_shape, e0, e1)  # the fill is in thread order
@@ -304,7 +303,7 @@ def _grid_changed(bp: ti.template()) -> ti.i32:
     without pair reuse."""
     changed = 1
     if ti.static(bp.reuses_pairs):
-        changed = ti.max(bp.refits[None], pair_lists_stale(bp))
+        changed = ti.max(ti.min(bp.refits[None], 1), pair_lists_stale(bp))
     return changed
 
 

@@ -12,7 +12,8 @@ shape whose enlarged bounds and whose partners' did not change has the same part
 step: it copies its old list instead of searching the grid. A shape searches again when it was
 refitted, when an old partner was, or when a refitted shape of higher id now overlaps it
 (``_choose_searches``); every shape searches when ``listed`` is 0 (a new world, a changed awake
-set) or last step's list overflowed. The extra pairs are farther apart than any margin: the
+set), when last step's list overflowed, or when more than a third of the shapes refitted
+(``SEARCH_ALL_REFITS``). The extra pairs are farther apart than any margin: the
 narrowphase finds no points for them. Since the order is by id, the list is the one a full
 search gives.
 """
@@ -30,6 +31,12 @@ ivec3 = ti.math.ivec3
 
 PAIR_SEARCH_STRIDE = 16
 """The pair search's loop visits the shapes in this many interleaved strata (``find_pairs_loops``)."""
+
+SEARCH_ALL_REFITS = 3
+"""Every shape searches when more than one in this many refitted (a landing pile, nearly all of
+them): marking a refitted shape's partners of lower id is a grid query of its own, on the
+launching thread, and costs more than the parallel search of the few shapes it spares. A search
+lists what the kept list holds, so the pairs are the same either way."""
 
 
 @ti.func
@@ -206,18 +213,22 @@ def _mark_lower_partners(bp: ti.template(), shapes: ti.template(), i: ti.i32):
 @ti.func
 def _choose_searches(bp: ti.template(), shapes: ti.template(), awake: ti.template(), n: ti.i32):
     """Keep last step's list in ``old_b`` / ``old_start`` and say which shapes search again
-    (``searches``, module docstring): all when ``listed`` is 0 or last step's list overflowed."""
-    stale = pair_lists_stale(bp)
+    (``searches``, module docstring): all when ``listed`` is 0, when last step's list overflowed, or
+    when more than one shape in ``SEARCH_ALL_REFITS`` refitted (``refits``, cleared here)."""
+    every = pair_lists_stale(bp)
+    if SEARCH_ALL_REFITS * bp.refits[None] > n:
+        every = 1
+    keep = 1 - every
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for p in range(ti.min(bp.pair_total[None], bp.pair_capacity)):
+    for p in range(ti.min(bp.pair_total[None], bp.pair_capacity) * keep):
         bp.old_b[p] = bp.pair_b[p]
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for k in range(n + 1):
+    for k in range((n + 1) * keep):
         bp.old_start[k] = bp.pair_start[k]
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
     for k in range(n):
         i = shape_id(shapes, awake, k)
-        search = 1 if stale or bp.refitted[i] != 0 else 0
+        search = 1 if every or bp.refitted[i] != 0 else 0
         if search == 0:
             for e in range(bp.old_start[k], bp.old_start[k + 1]):
                 j = bp.old_b[e]
@@ -226,12 +237,13 @@ def _choose_searches(bp: ti.template(), shapes: ti.template(), awake: ti.templat
                         search = 1
         bp.searches[i] = search
     ti.loop_config(serialize=ti.static(serialize_light_loops()))
-    for k in range(n):
+    for k in range(n * keep):
         i = shape_id(shapes, awake, k)
-        if bp.refitted[i] != 0 and not stale:
+        if bp.refitted[i] != 0:
             _mark_lower_partners(bp, shapes, i)
     bp.listed[None] = 1
     bp.searched[None] = 0
+    bp.refits[None] = 0
 
 
 @ti.func

@@ -16,7 +16,7 @@ import pytest
 from sandbox.bodies import Bodies
 from sandbox.awake import EVERY
 from sandbox.broadphase import Broadphase, build_dynamic_grid, compute_all_aabbs
-from sandbox.pair_search import find_pairs
+from sandbox.pair_search import SEARCH_ALL_REFITS, find_pairs
 from sandbox.static_grid import build_static_grid
 from sandbox.dispatch import PARALLEL, SERIAL
 from sandbox.integrate import ErrorFlags
@@ -279,6 +279,23 @@ def test_a_search_of_some_shapes_lists_what_a_full_search_of_the_same_bounds_lis
     assert kept == sorted(expected, key=lambda p: (order[p[0]], _partner_order(p[1])))
     for dispatch in (SERIAL, PARALLEL):  # and searching again from these bounds changes nothing
         assert w.pairs(dispatch, reuse_margin=REUSE, full=False) == kept
+
+
+def test_when_many_shapes_refit_every_shape_searches_and_lists_what_a_full_search_lists():
+    """More than one shape in SEARCH_ALL_REFITS refitted (a landing pile): every shape searches
+    instead of each refitted one marking its partners of lower id, and the list is the same."""
+    w = _Broadphase(seed=3)
+    w.pairs(reuse_margin=REUSE)
+    _move_some_bodies(w, np.random.default_rng(3), far=60, near=0)
+    kept = w.pairs(reuse_margin=REUSE, full=False)
+    refitted = int(w.bp.refitted.to_numpy()[w.dynamic].sum())
+    assert SEARCH_ALL_REFITS * refitted > len(w.dynamic) > refitted
+    assert int(w.bp.searched[None]) == len(w.dynamic)
+    assert int(w.bp.refits[None]) == 0  # the search clears the count for the next step
+    lo, hi = w._aabbs()
+    expected = _brute_force_pairs(lo, hi, w.shape, w.dynamic, w.static)
+    order = {int(i): k for k, i in enumerate(w.dynamic)}
+    assert kept == sorted(expected, key=lambda p: (order[p[0]], _partner_order(p[1])))
 
 
 def test_static_grid_lists_each_static_shape_in_every_cell_it_covers(world):
