@@ -251,7 +251,8 @@ class Settings:
     """[m] A dynamic shape enters the broadphase with its bounds grown by this much more (at
     most a quarter of its bounding radius): while its bounds stay inside those, and no partner's
     left theirs, it keeps its pairs instead of searching the grid again (pair_search.py; Box2D's
-    and Rapier's enlarged bounds). Larger keeps pairs longer and lists more pairs that have no
+    and Rapier's enlarged bounds; in a step where more than a third of the shapes leave theirs,
+    every shape searches, which lists the same pairs). Larger keeps pairs longer and lists more pairs that have no
     points. Each shape's partners are listed by id whatever it is, so the contacts do not
     depend on it, but for one thing: a pair kept without points skips the narrowphase while a
     bound says it cannot touch (manifold_cache.py), where a pair new to the list runs it, and
