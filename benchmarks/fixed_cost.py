@@ -9,7 +9,8 @@ the scene is stepped ``--settle`` times, the solve launch's arguments are kept, 
 runs as a kernel of its own, 200 launches a block, best of five blocks (microseconds a launch):
 
 * the whole solve launch with 0, 1 and 2 substeps (the step's scalars set to that count);
-* the set-up alone (``prepare_step_loops``), the store and checks alone (``finish_step_loops``);
+* the set-up alone (``prepare_step_loops``, responses left to the team as in the shared launch), the
+  store and checks alone (``step_kernels.finish_step``);
 * the team with 0 substeps (its wake-up, counter reset and lane copy with the rows' responses),
   its wake-up and reset alone, the lane copy with and without the responses;
 * the collision (``begin_and_collide``) and an empty kernel with the solve's arguments (what a
@@ -33,9 +34,9 @@ from sandbox.solvers import team as tm
 from sandbox.solvers.point_lanes import lane_copy_phase
 from sandbox.solvers.team_loop import goes_in_lanes, iterate_shared_loops
 from sandbox.step import speculation
-from sandbox.step_kernels import finish_step_loops, prepare_step_loops
-from sandbox.step_scalars import (BIASED_SWEEPS, MATCH_DISTANCE, RELAX_SWEEPS, RELAXATION, SLEEP_ANGULAR,
-                                  SLEEP_LINEAR, SLEEP_TIME, STEP, SUBSTEP, SUBSTEPS, WARM_FACTOR)
+from sandbox.step_kernels import prepare_step_loops
+from sandbox.step_scalars import (BIASED_SWEEPS, MATCH_DISTANCE, RELAX_SWEEPS, RELAXATION, SUBSTEP, SUBSTEPS,
+                                  WARM_FACTOR)
 
 _woken = None  # a field the wake-up kernel writes, made after ti.init (main)
 
@@ -56,14 +57,6 @@ def _team(b: ti.template(), sw: ti.template(), team: ti.template(), members: ti.
     in_team = ti.static(goes_in_lanes(sw.visit, sw.kind, sw.friction))
     iterate_shared_loops(team, b, sw.kind, sw.visit, sw.friction, sw.warm, sw.track, awake, sw.motion, f[SUBSTEP],
                          n[SUBSTEPS], n[BIASED_SWEEPS], n[RELAX_SWEEPS], members, in_team, sw.split)
-
-
-@ti.kernel
-def _finish(b: ti.template(), sw: ti.template(), team: ti.template(), members: ti.i32, awake: ti.template(),
-            dispatch: ti.template()):
-    f, n = ti.static(b.scalars.f, b.scalars.i)
-    finish_step_loops(b, sw.kind, n[SUBSTEPS], awake, f[STEP], f[SLEEP_LINEAR], f[SLEEP_ANGULAR], f[SLEEP_TIME],
-                      dispatch)
 
 
 @ti.kernel
@@ -147,7 +140,7 @@ def main() -> None:
         "solve launch, 1 substep": with_substeps(1, lambda: shared(*args)),
         "solve launch, 2 substeps": with_substeps(2, lambda: shared(*args)),
         "set-up alone": lambda: best_us(lambda: _prepare(*args)),
-        "store and checks alone": lambda: best_us(lambda: _finish(*args)),
+        "store and checks alone": lambda: best_us(lambda: step_kernels.finish_step(b, args[1].kind, args[4], args[5])),
         "team, 0 substeps": with_substeps(0, lambda: _team(*args)),
         "team wake-up and reset": lambda: best_us(lambda: _wake(*args)),
         "lane copy with responses": lambda: best_us(lambda: _copy(*args, True)),

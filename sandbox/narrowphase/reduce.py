@@ -11,13 +11,9 @@ patch, so the solver can resist any torque the full patch could.
 
 One change to that rule: each later pass divides a candidate's lever arm or area
 by 1 + g / ``REDUCE_GAP_LENGTH``, g its gap above the deepest point (above
-touching, when the deepest touches). Where every candidate touches nothing
-changes; where a face is tilted, a corner about to touch beats one high up in
-the speculative margin, which cannot carry load within the step. By area alone
-a box tilted across another's edge kept a point 18.7 mm up and dropped the
-corner 0.7 mm from touching that it rocked onto, which then arrived ~2 mm deep,
-was pushed back out, and the box rocked for good under every solver
-(tolerances.py).
+touching, when the deepest touches), so that on a tilted face a corner about to
+touch beats one high up in the speculative margin, which cannot carry load within
+the step (why, measured: tolerances.REDUCE_GAP_LENGTH).
 
 Why a stream and not a buffer: local arrays in Taichi functions make the
 compiler's IR passes grow with the square of their total size (measured with
