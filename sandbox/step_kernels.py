@@ -25,6 +25,7 @@ from .contacts import clear_contacts_loops, collide_pairs_loops
 from .integrate import check_bodies_loops, clear_error_flags
 from .manifold_cache import clear_cache_loops
 from .pair_search import find_pairs_loops
+from .repeat_launch import repeat_launch
 from .persistence import clear_history_loops, match_contact, store_contacts_loops
 from .sleep import rest_and_label_loops
 from .solvers.impact_carry import clear_impacts, list_carry_rows
@@ -38,6 +39,7 @@ from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, OVERLAP_DEPTH,
                            SUBSTEP, SUBSTEPS, WARM_FACTOR)
 
 
+@repeat_launch
 @ti.kernel
 def begin_and_collide(b: ti.template(), speculative: ti.template(), kinds: ti.template(), awake: ti.template(),
                       dispatch: ti.template()):
@@ -78,6 +80,7 @@ def prepare_step_loops(b: ti.template(), blk: ti.template(), match_distance: ti.
             respond_row(b.rows, b.contacts, b.bodies, blk, split, friction, q)
 
 
+@repeat_launch
 @ti.kernel
 def prepare_step(b: ti.template(), kind: ti.template(), mode: ti.template(), split: ti.template(),
                  friction: ti.template(), dispatch: ti.template()):
@@ -100,6 +103,7 @@ def finish_step_loops(b: ti.template(), kind: ti.template(), substeps: ti.i32, a
         rest_and_label_loops(awake, b.contacts, b.bodies, h, lin, ang, rest_time, True)
 
 
+@repeat_launch
 @ti.kernel
 def finish_step(b: ti.template(), kind: ti.template(), awake: ti.template(), dispatch: ti.template()):
     """``finish_step_loops`` with the scalars of ``b.scalars``."""
@@ -137,6 +141,7 @@ def solve_switches(*values) -> SolveSwitches:
     return found
 
 
+@repeat_launch
 @ti.kernel
 def solve_step_in_order(b: ti.template(), sw: ti.template(), awake: ti.template(), dispatch: ti.template()):
     """``prepare_step``, the iteration loop on one thread (substep.iterate_in_order) and
@@ -154,6 +159,7 @@ def solve_step_in_order(b: ti.template(), sw: ti.template(), awake: ti.template(
                       dispatch)
 
 
+@repeat_launch
 @ti.kernel
 def solve_step_shared(b: ti.template(), sw: ti.template(), team: ti.template(), members: ti.i32,
                       awake: ti.template(), dispatch: ti.template()):
