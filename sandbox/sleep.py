@@ -35,6 +35,7 @@ from .backend import serialize_light_loops
 from .bodies import save_body_state, update_body_inertia
 from .broadphase import SPECULATIVE_OFF, Broadphase, build_dynamic_grid_loops
 from .dispatch import PARALLEL
+from .host_counters import scalar_reader
 from .islands import Islands, label_islands, label_rounds, start_labels
 from .narrowphase.manifold import MAX_POINTS
 from .prefix_sum import Scanner, exclusive_scan
@@ -78,10 +79,27 @@ class SleepBuffers:
         self.grid_full = False
         """Set by the host when the sleeping shapes' grid overflowed its entries: the buffers grow
         before the next collision (edits.grow_if_needed), as for the awake grid."""
+        self.host_reads = None  # _host_reads
         self.idle = False
         """The last step ran with no awake body and nothing has woken since: the next step
         would change no bit (no awake shape to collide, no row, no body to move), so the
         stepper skips it. Every change of the awake set clears it (``note_grid``)."""
+
+
+class _HostReads:
+    """A sleeping world's per-step reads (host_counters.scalar_reader): its touched mark and
+    each slot of its status."""
+
+    def __init__(self, sl: SleepBuffers):
+        self.touched = scalar_reader(sl.touched)
+        self.status = tuple(scalar_reader(sl.status, k) for k in range(sl.status.shape[0]))
+
+
+def _host_reads(sl: SleepBuffers) -> _HostReads:
+    """``sl``'s readers, made at its first read (its fields are placed by then)."""
+    if sl.host_reads is None:
+        sl.host_reads = _HostReads(sl)
+    return sl.host_reads
 
 
 def note_grid(sl: SleepBuffers) -> None:
@@ -313,12 +331,11 @@ def after_step(buf, h: float, settings, labelled: bool = False) -> None:
     args = (sl, buf.contacts, buf.bodies, *rest_arguments(h, settings))
     if not labelled:
         _rest_and_label(*args, True)
-    status = sl.status.to_numpy()
-    while status[SPLIT] > 0:  # labels not converged in ROUNDS rounds: more rounds, then decide again
+    read = _host_reads(sl)
+    while read.status[SPLIT]() > 0:  # labels not converged in ROUNDS rounds: more rounds, then decide again
         _rest_and_label(*args, False)
-        status = sl.status.to_numpy()
-    sl.idle = int(status[AWAKE_ISLANDS]) == 0  # every dynamic body slept through this step
-    if status[FALLING_COUNT] > 0:
+    sl.idle = read.status[AWAKE_ISLANDS]() == 0  # every dynamic body slept through this step
+    if read.status[FALLING_COUNT]() > 0:
         _fall_asleep(sl, buf.history, buf.manifold_cache, buf.shapes, buf.bodies, buf.bp, buf.errors,
                      settings.contact_margin)
         note_grid(sl)
@@ -341,7 +358,7 @@ def wake_touched(buf, margin: float) -> bool:
     """After a narrowphase: wake the sleeping islands it found touched, handing the manifold
     cache's halves back so the collision can be redone (True: redo it)."""
     sl = buf.sleep
-    if int(sl.touched[None]) == 0:
+    if _host_reads(sl).touched() == 0:
         return False
     cache = buf.manifold_cache
     cache.parity[None] = 1 - int(cache.parity[None])
