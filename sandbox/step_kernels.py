@@ -171,10 +171,11 @@ def solve_step_shared(b: ti.template(), sw: ti.template(), team: ti.template(), 
     shares and responses on every thread (the same values, from the same inputs: the same bits)."""
     f, n = ti.static(b.scalars.f, b.scalars.i)
     in_team = ti.static(goes_in_lanes(sw.visit, sw.kind, sw.friction))
-    prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], sw.kind, sw.mode, f[RELAXATION], sw.split,
-                       sw.friction, dispatch, not in_team)
+    if ti.static(not in_team):
+        prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], sw.kind, sw.mode, f[RELAXATION], sw.split,
+                           sw.friction, dispatch)
     iterate_shared_loops(team, b, sw.kind, sw.visit, sw.friction, sw.warm, sw.track, awake, sw.motion, f[SUBSTEP],
-                         n[SUBSTEPS], n[BIASED_SWEEPS], n[RELAX_SWEEPS], members, in_team, sw.split)
+                         n[SUBSTEPS], n[BIASED_SWEEPS], n[RELAX_SWEEPS], members, in_team, sw.split, sw.mode, in_team)
     finish_step_loops(b, sw.kind, n[SUBSTEPS], awake, f[STEP], f[SLEEP_LINEAR], f[SLEEP_ANGULAR], f[SLEEP_TIME],
                       dispatch)
 

@@ -13,13 +13,17 @@ import taichi as ti
 from ..awake import body_id, body_total
 from ..integrate import GYROSCOPIC, advance_pose, apply_gravity
 from ..lanes import LANES
+from ..persistence import match_contact
 from ..pose_lanes import advance_poses
+from ..step_scalars import MATCH_DISTANCE, RELAXATION, WARM_FACTOR
 from . import team as tm
+from .block_adjacency import build_adjacency_loops
 from .contact_spring import params_gravity
+from .impact_carry import clear_impacts, list_carry_rows
 from .mass_splitting import clamp_folded_carries, gather_body, sweep_block, warm_block
 from .point_lanes import lane_block_phase, lane_copy_phase, lanes_apply
 from .pgs import MAX_COLORS, solve_manifold
-from .rows import BIASED, RELAX
+from .rows import BIASED, RELAX, prepare_row
 from .step_impulses import add_step_impulse
 from .substep import BLOCKS, PGS, PGS_COLORED, folds_warm_start, light_sweeps_now
 
@@ -40,7 +44,8 @@ def shared_phase_bound(schedule: int, iterations: int, sweeps: int, relax: int, 
     if schedule == PGS_COLORED:
         per_sweep = MAX_COLORS + 1  # every colour, then the overflow colour
         return iterations * ((sweeps + relax) * per_sweep + 4)
-    return iterations * (2 * (sweeps + ratio + relax + 1) + 4) + 1  # + 1: the lane copy (point_lanes.py)
+    # + 3: the set-up's two phases (_set_up_phases) and the lane copy (point_lanes.py)
+    return iterations * (2 * (sweeps + ratio + relax + 1) + 4) + 3
 
 
 @ti.func
@@ -248,16 +253,49 @@ def _lane_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 
 
 @ti.func
+def _set_up_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, b: ti.template(),
+                   kind: ti.template(), mode: ti.template()) -> ti.i32:
+    """The step's set-up (step_kernels.prepare_step_loops, the responses left to the lane copy) as
+    two phases of the team, so that it needs no loop of its own: each point's rows and warm-start
+    match, claimed in chunks as the sweeps are (a point writes only its own rows); then the impact
+    rows' list and the block adjacency, one item that one member runs in order, as the launching
+    thread ran them (on the CPU their loops are serial: backend.serialize_light_loops). The same
+    loops in the same order: the same bits. Returns the next phase."""
+    f = ti.static(b.scalars.f)
+    n = b.contacts.count[None]
+    lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
+    while lo < hi:
+        for q in range(lo, hi):
+            prepare_row(b.rows, b.contacts, b.bodies, q, shares=False)
+            match_contact(b.history, b.contacts, b.rows, f[MATCH_DISTANCE], f[WARM_FACTOR], q)
+        tm.finish(team, p, hi - lo)
+        lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
+    tm.wait(team, p, n)
+    p += 1
+    lo, hi, _ = tm.next_chunk(team, p, 1, member, members, 0)
+    if lo < hi:
+        list_carry_rows(b.rows, b.contacts)
+        build_adjacency_loops(b.blocks, b.contacts, b.bodies, b.rows, kind, mode, f[RELAXATION])
+        tm.finish(team, p, 1)
+    tm.wait(team, p, 1)
+    return p + 1
+
+
+@ti.func
 def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.template(), s: ti.template(),
                  rows: ti.template(),
                  c: ti.template(), bodies: ti.template(), col: ti.template(), kind: ti.template(),
                  schedule: ti.template(), friction: ti.template(), warm: ti.template(), track: ti.template(),
                  awake: ti.template(), motion: ti.template(), gravity: vec3, h: ti.f32, iterations: ti.i32,
-                 sweeps: ti.i32, relax: ti.i32, responds: ti.template(), split: ti.template()):
-    """What one thread runs: every phase of ``iterate_in_order``, in its order."""
+                 sweeps: ti.i32, relax: ti.i32, responds: ti.template(), split: ti.template(), b: ti.template(),
+                 mode: ti.template(), sets_up: ti.template()):
+    """What one thread runs: every phase of ``iterate_in_order``, in its order (with ``sets_up``,
+    the step's set-up first)."""
     fold = ti.static(folds_warm_start(schedule, warm))
     grouped = ti.static(goes_in_lanes(schedule, kind, friction))
     p = 0
+    if ti.static(sets_up):
+        p = _set_up_phases(team, p, member, members, b, kind, mode)
     if ti.static(grouped):
         p = lane_copy_phase(team, p, member, members, lr, s, rows, c, bodies, responds, split, friction)
     for it in range(iterations):
@@ -305,21 +343,28 @@ def _team_member(team: ti.template(), member: ti.i32, members: ti.i32, lr: ti.te
 def iterate_shared_loops(team: ti.template(), b: ti.template(), kind: ti.template(), schedule: ti.template(),
                          friction: ti.template(), warm: ti.template(), track: ti.template(), awake: ti.template(),
                          motion: ti.template(), h: ti.f32, iterations: ti.i32, sweeps: ti.i32, relax: ti.i32,
-                         members: ti.i32, responds: ti.template() = False, split: ti.template() = False):
+                         members: ti.i32, responds: ti.template() = False, split: ti.template() = False,
+                         mode: ti.template() = 0, sets_up: ti.template() = False):
     """All ``iterations`` substeps of ``h``, shared by ``members`` threads, after clearing every
     counter of the team (sized for at least ``shared_phase_bound`` x ``members``, Schedule.team):
     a serial loop, then one top-level loop that starts a member per thread. ``responds`` (only
     where ``goes_in_lanes``): the rows' responses (rows.respond_row, ``split`` its switch) are
-    worked out in the lane copy, on every thread, instead of by the step's set-up."""
+    worked out in the lane copy, on every thread, instead of by the step's set-up. ``sets_up``
+    (with ``responds``): the set-up itself is the team's first phases (``_set_up_phases``, ``mode``
+    the schedule's merge), so the step needs no loop besides the team's before its store."""
     ti.static_assert(schedule != PGS, "serial PGS has nothing to share")
     ti.static_assert(not responds or goes_in_lanes(schedule, kind, friction), "only the lane copy responds")
+    ti.static_assert(not sets_up or responds, "the team sets up only where its lane copy responds")
     s, rows, c, bodies, col = b.blocks, b.rows, b.contacts, b.bodies, b.coloring
+    if ti.static(sets_up):
+        clear_impacts(rows)  # before any row is prepared (impact_carry.note_impact)
     gravity = params_gravity(rows)  # the step's gravity rides in rows.params (contact_spring.row_params)
     tm.reset_loop(team, ti.static(team.claimed.shape[0]))
     for i in range(members * tm.TASK_ITEMS):
         if i % tm.TASK_ITEMS == 0:
             _team_member(team, i // tm.TASK_ITEMS, members, b.lanes, s, rows, c, bodies, col, kind, schedule, friction,
-                         warm, track, awake, motion, gravity, h, iterations, sweeps, relax, responds, split)
+                         warm, track, awake, motion, gravity, h, iterations, sweeps, relax, responds, split, b, mode,
+                         sets_up)
 
 
 @ti.kernel
