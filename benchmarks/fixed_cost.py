@@ -8,7 +8,8 @@ loop the CPU threads share (``step_kernels.solve_step_shared``; mass splitting a
 the scene is stepped ``--settle`` times, the solve launch's arguments are kept, and then each part
 runs as a kernel of its own, 200 launches a block, best of five blocks (microseconds a launch):
 
-* the whole solve launch with 0, 1 and 2 substeps (the step's scalars set to that count);
+* the whole solve launch with 0, 1 and 2 substeps (the step's scalars set to that count), and with 0
+  as it was laid out before the team took over the set-up (docs/bench.md, "Twenty-second pass");
 * the set-up alone (``prepare_step_loops``, responses left to the team as in the shared launch), the
   store and checks alone (``step_kernels.finish_step``);
 * the team with 0 substeps (its wake-up, counter reset and lane copy with the rows' responses),
@@ -20,7 +21,7 @@ Each part's own work is its figure less the empty launch. The world is not held 
 launches with substeps move it a little on its last contacts and each collision launch redoes the
 step's collision, so the parts are timed near the settled state, not at it. A diagnostic of the
 running code (it reaches into ``World``'s buffers), not of the API; figures in docs/bench.md,
-"Twenty-first pass".
+"Twenty-first pass" and "Twenty-second pass".
 """
 
 import argparse
@@ -34,9 +35,9 @@ from sandbox.solvers import team as tm
 from sandbox.solvers.point_lanes import lane_copy_phase
 from sandbox.solvers.team_loop import goes_in_lanes, iterate_shared_loops
 from sandbox.step import speculation
-from sandbox.step_kernels import prepare_step_loops
-from sandbox.step_scalars import (BIASED_SWEEPS, MATCH_DISTANCE, RELAX_SWEEPS, RELAXATION, SUBSTEP, SUBSTEPS,
-                                  WARM_FACTOR)
+from sandbox.step_kernels import finish_step_loops, prepare_step_loops
+from sandbox.step_scalars import (BIASED_SWEEPS, MATCH_DISTANCE, RELAX_SWEEPS, RELAXATION, SLEEP_ANGULAR,
+                                  SLEEP_LINEAR, SLEEP_TIME, STEP, SUBSTEP, SUBSTEPS, WARM_FACTOR)
 
 _woken = None  # a field the wake-up kernel writes, made after ti.init (main)
 
@@ -48,6 +49,21 @@ def _prepare(b: ti.template(), sw: ti.template(), team: ti.template(), members: 
     in_team = ti.static(goes_in_lanes(sw.visit, sw.kind, sw.friction))
     prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], sw.kind, sw.mode, f[RELAXATION], sw.split,
                        sw.friction, dispatch, not in_team)
+
+
+@ti.kernel
+def _solve_set_up_apart(b: ti.template(), sw: ti.template(), team: ti.template(), members: ti.i32,
+                        awake: ti.template(), dispatch: ti.template()):
+    """The solve launch as it was until the twenty-second pass: the set-up's loops before the team,
+    not its first phases (step_kernels.solve_step_shared); the same bits."""
+    f, n = ti.static(b.scalars.f, b.scalars.i)
+    in_team = ti.static(goes_in_lanes(sw.visit, sw.kind, sw.friction))
+    prepare_step_loops(b, b.blocks, f[MATCH_DISTANCE], f[WARM_FACTOR], sw.kind, sw.mode, f[RELAXATION], sw.split,
+                       sw.friction, dispatch, not in_team)
+    iterate_shared_loops(team, b, sw.kind, sw.visit, sw.friction, sw.warm, sw.track, awake, sw.motion, f[SUBSTEP],
+                         n[SUBSTEPS], n[BIASED_SWEEPS], n[RELAX_SWEEPS], members, in_team, sw.split)
+    finish_step_loops(b, sw.kind, n[SUBSTEPS], awake, f[STEP], f[SLEEP_LINEAR], f[SLEEP_ANGULAR], f[SLEEP_TIME],
+                      dispatch)
 
 
 @ti.kernel
@@ -139,6 +155,7 @@ def main() -> None:
         "solve launch, 0 substeps": with_substeps(0, lambda: shared(*args)),
         "solve launch, 1 substep": with_substeps(1, lambda: shared(*args)),
         "solve launch, 2 substeps": with_substeps(2, lambda: shared(*args)),
+        "the same, 0 substeps, set-up before the team": with_substeps(0, lambda: _solve_set_up_apart(*args)),
         "set-up alone": lambda: best_us(lambda: _prepare(*args)),
         "store and checks alone": lambda: best_us(lambda: step_kernels.finish_step(b, args[1].kind, args[4], args[5])),
         "team, 0 substeps": with_substeps(0, lambda: _team(*args)),

@@ -7,7 +7,7 @@ Python-scope checks and key padding on every call: ~4 us a read on the 2-vCPU VM
 against ~1 us for the accessor it ends in, when a 20-box step takes ~200 us. The accessor is
 public Taichi state (``ScalarField.host_accessors``); should a Taichi version lack it, the
 reads fall back to ``field[None]``. (``field.to_numpy()`` of an 8-int field, a kernel with an
-external array, took ~120 us.)
+external array, took 56-122 us.)
 """
 
 from __future__ import annotations

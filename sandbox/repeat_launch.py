@@ -6,9 +6,11 @@ attribute hook, a key built and looked up) and then fills a launch context: ~12 
 ``step_kernels``' kernels on the 2-vCPU VMs here, and ~26 us for the pyramid's solve launch,
 against ~130 us for a whole 20-box step (docs/bench.md, "Twenty-second pass"). A step calls the
 same two kernels with the same objects every time, so ``repeat_launch`` remembers the instance
-its last call selected and, when the next call passes the very same objects, launches that
-instance directly: the same compiled code, so the same bits. Any other call takes Taichi's
-public path and becomes the one remembered.
+its last call selected and, when the next call passes the very same template arguments (objects
+the same objects; numbers and flags the same type and value, as Taichi keys them; scalar
+arguments anything, set at each launch), launches that instance directly: the same compiled
+code, so the same bits. Any other call takes Taichi's public path and becomes the one
+remembered.
 
 The direct launch uses Taichi 1.7's Python-side kernel objects (``Kernel.compiled_kernels``,
 ``make_launch_context``, ``Program.compile_kernel`` / ``launch_kernel``), the calls its own
@@ -28,33 +30,48 @@ from taichi.lang.util import cook_dtype
 from taichi.types import primitive_types, template
 from taichi.types.utils import is_signed
 
+_VALUES = (bool, int, float)
+"""Template arguments of these types are compared by type and value (Taichi keys them by
+value); any other template argument by identity (Taichi keys most by identity, and a value it
+keys by equality is the same value when it is the same object)."""
+_ANY = object()
+"""Held for an argument that is not a template one: its value is set at every launch and never
+selects the instance, so any value passes."""
+
 
 def _held(value):
-    """What the remembered call keeps of an argument: a weak reference where the object takes
-    one (a world's buffers are not kept alive by a launch), else the value itself."""
+    """What the remembered call keeps of an argument: a number or flag itself, a weak reference
+    to an object that takes one (the wrapper keeps no world's buffers alive), else the object."""
+    if type(value) in _VALUES:
+        return value
     if type(value).__weakrefoffset__:
         return weakref.ref(value)
     return value
 
 
 def _same(held, value) -> bool:
+    if held is _ANY:
+        return True
+    if type(held) in _VALUES:
+        return type(value) is type(held) and value == held
     if type(held) is weakref.ref:
-        return held() is value
+        kept = held()
+        return kept is not None and kept is value  # a dead reference matches nothing, None included
     return held is value
 
 
 class RepeatedKernel:
-    """Calls ``kernel`` (a ``@ti.kernel`` of positional arguments, no return value) as the
-    kernel itself would; see the module docstring."""
+    """Calls ``kernel`` (a ``@ti.kernel``) as the kernel itself would; a call of positional
+    arguments only, and of a kernel without a return value, print or autodiff, may launch
+    directly (module docstring)."""
 
     def __init__(self, kernel):
         functools.update_wrapper(self, kernel)
         self.kernel = kernel
         self._primal = getattr(kernel, "_primal", None)
         self._setters = self._plan(self._primal)
-        self._held = None  # the remembered call's arguments (``_held``)
-        self._instance = None  # its compiled kernel instance
-        self._prog = None  # and the Taichi program that holds it (ti.reset / ti.init make another)
+        self._scalars = frozenset(position for position, *_ in self._setters or ())
+        self._last = None  # (held arguments, compiled instance, Taichi program) of the remembered call
 
     @staticmethod
     def _plan(primal):
@@ -80,34 +97,37 @@ class RepeatedKernel:
         except Exception:  # another Taichi version: the public path
             return None
 
-    def __call__(self, *args):
-        held = self._held
-        if held is not None and len(args) == len(held) and all(map(_same, held, args)):
-            runtime = impl.get_runtime()
-            if runtime.prog is self._prog and runtime.target_tape is None and runtime.fwd_mode_manager is None:
-                self._launch(runtime, args)
-                return None
-        result = self.kernel(*args)
-        self._remember(args)
+    def __call__(self, *args, **kwargs):
+        last = self._last
+        if last is not None and not kwargs:
+            held, instance, prog = last
+            if len(args) == len(held) and all(map(_same, held, args)):
+                runtime = impl.get_runtime()
+                if runtime.prog is not prog:  # ti.reset / ti.init: the instance belongs to no live program
+                    self._last = None
+                elif runtime.target_tape is None and runtime.fwd_mode_manager is None:
+                    self._launch(runtime, instance, args)
+                    return None
+        result = self.kernel(*args, **kwargs)
+        self._remember(args, kwargs)
         return result
 
-    def _launch(self, runtime, args) -> None:
+    def _launch(self, runtime, instance, args) -> None:
         runtime.materialize()  # as every kernel call does: fields declared since are placed first
-        instance = self._instance
         context = instance.make_launch_context()
         for position, slot, setter, cast in self._setters:
             getattr(context, setter)(slot, cast(args[position]))
         prog = runtime.prog
         try:
             prog.launch_kernel(prog.compile_kernel(prog.config(), prog.get_device_caps(), instance), context)
-        except Exception as exc:
+        except Exception as exc:  # Taichi's own launch_kernel turns the C++ error the same way
             raise handle_exception_from_cpp(exc) from None
 
-    def _remember(self, args) -> None:
-        """After a public call: the instance it launched, for the next call with the same objects."""
-        self._held = None
+    def _remember(self, args, kwargs) -> None:
+        """After a public call: the instance it launched, for the next call with the same arguments."""
+        self._last = None
         primal = self._primal
-        if self._setters is None or primal.has_print or len(args) != len(primal.arguments):
+        if self._setters is None or kwargs or primal.has_print or len(args) != len(primal.arguments):
             return
         try:
             instance = primal.compiled_kernels[primal.ensure_compiled(*args)]
@@ -115,9 +135,8 @@ class RepeatedKernel:
                 return
         except Exception:
             return
-        self._instance = instance
-        self._prog = impl.get_runtime().prog
-        self._held = tuple(map(_held, args))
+        held = tuple(_ANY if i in self._scalars else _held(a) for i, a in enumerate(args))
+        self._last = (held, instance, impl.get_runtime().prog)
 
 
 def repeat_launch(kernel) -> RepeatedKernel:

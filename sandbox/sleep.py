@@ -79,7 +79,7 @@ class SleepBuffers:
         self.grid_full = False
         """Set by the host when the sleeping shapes' grid overflowed its entries: the buffers grow
         before the next collision (edits.grow_if_needed), as for the awake grid."""
-        self.host_reads = None  # _host_reads
+        self.host_reads = None  # _host_reads: made at the first read, once the fields are placed
         self.idle = False
         """The last step ran with no awake body and nothing has woken since: the next step
         would change no bit (no awake shape to collide, no row, no body to move), so the

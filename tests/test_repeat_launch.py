@@ -54,29 +54,52 @@ def test_a_repeated_call_launches_directly_and_computes_what_the_public_path_com
     assert direct.value.to_numpy()[1] == ((1.0 * 1.5 + 2) * 1.5 + 2) * 1.5 + 2
 
 
-def test_other_objects_or_another_program_take_the_public_path_and_are_remembered(public_calls):
-    a, b = Cells(4), Cells(4)
-    count, factor = 4, 2.0
-    scale_and_shift(a, count, factor, 0)
-    scale_and_shift(b, count, factor, 0)  # another template object: another instance
-    scale_and_shift(b, count, factor, 0)
-    scale_and_shift(a, count, 3.0, 0)  # the same values, a new float object: not known to be the same
+def test_scalar_arguments_change_freely_and_template_values_compare_by_value(public_calls):
+    cells = Cells(4)
+    cells.value.from_numpy(np.zeros(4, dtype=np.float32))
+    scale_and_shift(cells, 4, 1.0, 2)
+    scale_and_shift(cells, 2, 1.0, 2)  # count and factor are scalar arguments: set at each launch
+    scale_and_shift(cells, 4, float("3.0") - 2.0, int("2"))  # new objects, equal template value
+    assert public_calls.count("scale_and_shift") == 1
+    assert cells.value.to_numpy().tolist() == [6.0, 6.0, 4.0, 4.0]
+    scale_and_shift(cells, 4, 1.0, 2.0)  # the shift as a float: another template value, another instance
+    scale_and_shift(cells, 4, 1.0, 3)
     assert public_calls.count("scale_and_shift") == 3
-    scale_and_shift._prog = object()  # as after ti.reset: the remembered instance belongs to no live program
-    scale_and_shift(a, count, 3.0, 0)
+    assert cells.value.to_numpy().tolist() == [11.0, 11.0, 9.0, 9.0]
+
+
+def test_other_objects_another_program_or_keywords_take_the_public_path(public_calls):
+    a, b = Cells(4), Cells(4)
+    scale_and_shift(a, 4, 2.0, 0)
+    scale_and_shift(b, 4, 2.0, 0)  # another template object: another instance
+    scale_and_shift(b, 4, 2.0, 0)
+    assert public_calls.count("scale_and_shift") == 2
+    held, instance, _ = scale_and_shift._last
+    scale_and_shift._last = (held, instance, object())  # as after ti.reset: the instance belongs to no live program
+    scale_and_shift(b, 4, 2.0, 0)
+    scale_and_shift(b, 4, 2.0, shift=0)
     assert public_calls.count("scale_and_shift") == 4
 
 
-def test_the_remembered_call_does_not_keep_a_data_oriented_argument_alive():
+@repeat_launch
+@ti.kernel
+def fill(cells: ti.template(), value: ti.f32):
+    for i in range(4):
+        cells.value[i] = value
+
+
+def test_the_wrapper_holds_a_data_oriented_argument_weakly_and_a_dead_one_matches_nothing(public_calls):
     cells = Cells(4)
-    scale_and_shift(cells, 4, 1.0, 0)
-    gc.collect()
-    ref = scale_and_shift._held[0]
+    fill(cells, 1.0)
+    ref = fill._last[0][0]
     assert ref() is cells
     del cells
     gc.collect()
-    assert ref() is None
-    scale_and_shift(Cells(4), 4, 1.0, 0)  # a dead reference is never taken for the new object
+    assert ref() is None  # the wrapper held it weakly (Taichi's own key keeps only a weak one too)
+    fill(Cells(4), 1.0)  # a new object, perhaps at the dead one's address
+    assert public_calls.count("fill") == 2
+    with pytest.raises(Exception):
+        fill(None, 1.0)  # not taken for the dead reference: Taichi's own path rejects it
 
 
 def test_a_kernel_it_cannot_launch_directly_always_takes_the_public_path(public_calls):
