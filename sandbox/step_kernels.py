@@ -11,7 +11,9 @@ loop stays a parallel loop run in the same order as the separate launches: the s
 ``build.upload`` uses ``after_upload`` once per upload.
 Each takes the world's ``BufferSet`` as one template argument ``b`` rather than its parts:
 Taichi works out a launch's kernel instance from its template arguments in Python, ~6
-attribute look-ups per data-oriented argument, which came to a fifth of a small scene's step.
+attribute look-ups per data-oriented argument, which came to a fifth of a small scene's step;
+the step's kernels also skip that work when called again with the same arguments
+(repeat_launch.py).
 """
 
 from dataclasses import dataclass
@@ -25,8 +27,8 @@ from .contacts import clear_contacts_loops, collide_pairs_loops
 from .integrate import check_bodies_loops, clear_error_flags
 from .manifold_cache import clear_cache_loops
 from .pair_search import find_pairs_loops
-from .repeat_launch import repeat_launch
 from .persistence import clear_history_loops, match_contact, store_contacts_loops
+from .repeat_launch import repeat_launch
 from .sleep import rest_and_label_loops
 from .solvers.impact_carry import clear_impacts, list_carry_rows
 from .solvers.block_adjacency import build_adjacency_loops
@@ -167,8 +169,9 @@ def solve_step_shared(b: ti.template(), sw: ti.template(), team: ti.template(), 
     (team_loop.iterate_shared): ``prepare_step``'s parallel loops, the team's loop and
     ``finish_step``'s parallel loops, one after another as the three launches ran them, so the
     same bits, one launch (each ~0.1-0.3 ms of Python). ``team``, ``members``: Schedule.team.
-    Where the team's sweeps go eight points at a time, its lane copy works out the rows' response
-    shares and responses on every thread (the same values, from the same inputs: the same bits)."""
+    Where the team's sweeps go eight points at a time, the team also runs the set-up, as its
+    first phases, and its lane copy works out the rows' response shares and responses on every
+    thread (the same loops, in the same order, on the same inputs: the same bits)."""
     f, n = ti.static(b.scalars.f, b.scalars.i)
     in_team = ti.static(goes_in_lanes(sw.visit, sw.kind, sw.friction))
     if ti.static(not in_team):
