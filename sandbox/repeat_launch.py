@@ -23,6 +23,7 @@ from __future__ import annotations
 import functools
 import weakref
 
+import numpy as np
 from taichi.lang import impl
 from taichi.lang.enums import AutodiffMode
 from taichi.lang.exception import handle_exception_from_cpp
@@ -34,9 +35,21 @@ _VALUES = (bool, int, float)
 """Template arguments of these types are compared by type and value (Taichi keys them by
 value); any other template argument by identity (Taichi keys most by identity, and a value it
 keys by equality is the same value when it is the same object)."""
-_ANY = object()
-"""Held for an argument that is not a template one: its value is set at every launch and never
-selects the instance, so any value passes."""
+
+
+class _Scalar:
+    """Held for an argument that is not a template one: its value is set at every launch and never
+    selects the instance, so any value of the types Taichi's own launch accepts for it passes (any
+    other takes the public path, which raises Taichi's error)."""
+
+    __slots__ = ("types",)
+
+    def __init__(self, types: tuple):
+        self.types = types
+
+
+_INTEGER = _Scalar((int, np.integer))
+_REAL = _Scalar((float, int, np.floating, np.integer))
 
 
 def _held(value):
@@ -50,8 +63,8 @@ def _held(value):
 
 
 def _same(held, value) -> bool:
-    if held is _ANY:
-        return True
+    if type(held) is _Scalar:
+        return isinstance(value, held.types)
     if type(held) in _VALUES:
         return type(value) is type(held) and value == held
     if type(held) is weakref.ref:
@@ -70,13 +83,13 @@ class RepeatedKernel:
         self.kernel = kernel
         self._primal = getattr(kernel, "_primal", None)
         self._setters = self._plan(self._primal)
-        self._scalars = frozenset(position for position, *_ in self._setters or ())
+        self._scalars = {position: accepted for position, *_, accepted in self._setters or ()}
         self._last = None  # (held arguments, compiled instance, Taichi program) of the remembered call
 
     @staticmethod
     def _plan(primal):
-        """(argument position, launch-context slot, setter name, cast) of each non-template
-        argument (32-bit signed integers and floats), or None where a direct launch is not possible
+        """(argument position, launch-context slot, setter name, cast, accepted types) of each
+        non-template argument (signed integers and floats), or None where a direct launch is not possible
         (another argument type, a return value, autodiff, a Taichi without these attributes)."""
         try:
             if primal is None or primal.return_type is not None or primal.autodiff_mode != AutodiffMode.NONE:
@@ -87,9 +100,9 @@ class RepeatedKernel:
                 if isinstance(anno, template):
                     continue
                 if id(anno) in primitive_types.real_type_ids:
-                    setters.append((position, (slot,), "set_arg_float", float))
+                    setters.append((position, (slot,), "set_arg_float", float, _REAL))
                 elif id(anno) in primitive_types.integer_type_ids and is_signed(cook_dtype(anno)):
-                    setters.append((position, (slot,), "set_arg_int", int))
+                    setters.append((position, (slot,), "set_arg_int", int, _INTEGER))
                 else:
                     return None
                 slot += 1
@@ -115,7 +128,7 @@ class RepeatedKernel:
     def _launch(self, runtime, instance, args) -> None:
         runtime.materialize()  # as every kernel call does: fields declared since are placed first
         context = instance.make_launch_context()
-        for position, slot, setter, cast in self._setters:
+        for position, slot, setter, cast, _ in self._setters:
             getattr(context, setter)(slot, cast(args[position]))
         prog = runtime.prog
         try:
@@ -135,7 +148,7 @@ class RepeatedKernel:
                 return
         except Exception:
             return
-        held = tuple(_ANY if i in self._scalars else _held(a) for i, a in enumerate(args))
+        held = tuple(self._scalars[i] if i in self._scalars else _held(a) for i, a in enumerate(args))
         self._last = (held, instance, impl.get_runtime().prog)
 
 

@@ -62,9 +62,11 @@ def test_scalar_arguments_change_freely_and_template_values_compare_by_value(pub
     scale_and_shift(cells, 4, float("3.0") - 2.0, int("2"))  # new objects, equal template value
     assert public_calls.count("scale_and_shift") == 1
     assert cells.value.to_numpy().tolist() == [6.0, 6.0, 4.0, 4.0]
+    with pytest.raises(Exception):
+        scale_and_shift(cells, 4.0, 1.0, 2)  # a float count: Taichi's own path, and its error
     scale_and_shift(cells, 4, 1.0, 2.0)  # the shift as a float: another template value, another instance
     scale_and_shift(cells, 4, 1.0, 3)
-    assert public_calls.count("scale_and_shift") == 3
+    assert public_calls.count("scale_and_shift") == 4
     assert cells.value.to_numpy().tolist() == [11.0, 11.0, 9.0, 9.0]
 
 
