@@ -27,13 +27,13 @@ from .contacts import clear_contacts_loops, collide_pairs_loops
 from .integrate import check_bodies_loops, clear_error_flags
 from .manifold_cache import clear_cache_loops
 from .pair_search import find_pairs_loops
-from .persistence import clear_history_loops, match_contact, store_contacts_loops
+from .persistence import clear_history_loops, store_contacts_loops
 from .repeat_launch import repeat_launch
 from .sleep import rest_and_label_loops
-from .solvers.impact_carry import clear_impacts, list_carry_rows
-from .solvers.block_adjacency import build_adjacency_loops
+from .solvers.impact_carry import clear_impacts
 from .solvers.mass_splitting import update_support_loops
-from .solvers.rows import prepare_row, respond_row
+from .solvers.rows import respond_row
+from .solvers.set_up import order_blocks, prepare_point
 from .solvers.substep import iterate_in_order_loops
 from .solvers.team_loop import goes_in_lanes, iterate_shared_loops
 from .step_scalars import (BIASED_SWEEPS, MARGIN, MATCH_DISTANCE, OVERLAP_DEPTH, PAIR_REUSE_MARGIN, RELAX_SWEEPS,
@@ -72,10 +72,8 @@ def prepare_step_loops(b: ti.template(), blk: ti.template(), match_distance: ti.
     clear_impacts(b.rows)
     ti.loop_config(serialize=ti.static(dispatch.serial))
     for q in range(b.contacts.count[None]):
-        prepare_row(b.rows, b.contacts, b.bodies, q, shares=responds)
-        match_contact(b.history, b.contacts, b.rows, match_distance, warm_factor, q)
-    list_carry_rows(b.rows, b.contacts)
-    build_adjacency_loops(blk, b.contacts, b.bodies, b.rows, kind, mode, omega)
+        prepare_point(b, q, match_distance, warm_factor, responds)
+    order_blocks(b, blk, kind, mode, omega)
     if ti.static(responds):
         ti.loop_config(serialize=ti.static(dispatch.serial))
         for q in range(b.contacts.count[None]):

@@ -13,17 +13,16 @@ import taichi as ti
 from ..awake import body_id, body_total
 from ..integrate import GYROSCOPIC, advance_pose, apply_gravity
 from ..lanes import LANES
-from ..persistence import match_contact
 from ..pose_lanes import advance_poses
 from ..step_scalars import MATCH_DISTANCE, RELAXATION, WARM_FACTOR
 from . import team as tm
-from .block_adjacency import build_adjacency_loops
 from .contact_spring import params_gravity
-from .impact_carry import clear_impacts, list_carry_rows
+from .impact_carry import clear_impacts
 from .mass_splitting import clamp_folded_carries, gather_body, sweep_block, warm_block
 from .point_lanes import lane_block_phase, lane_copy_phase, lanes_apply
 from .pgs import MAX_COLORS, solve_manifold
-from .rows import BIASED, RELAX, prepare_row
+from .rows import BIASED, RELAX
+from .set_up import order_blocks, prepare_point
 from .step_impulses import add_step_impulse
 from .substep import BLOCKS, PGS, PGS_COLORED, folds_warm_start, light_sweeps_now
 
@@ -255,8 +254,8 @@ def _lane_sweeps(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32
 @ti.func
 def _set_up_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i32, b: ti.template(),
                    kind: ti.template(), mode: ti.template()) -> ti.i32:
-    """The step's set-up (step_kernels.prepare_step_loops, the responses left to the lane copy) as
-    two phases of the team, so that it needs no loop of its own: each point's rows and warm-start
+    """The step's set-up (set_up.py, as step_kernels.prepare_step_loops runs it, the responses
+    left to the lane copy) as two phases of the team, so that it needs no loop of its own: each point's rows and warm-start
     match, claimed in chunks as the sweeps are (a point writes only its own rows); then the impact
     rows' list and the block adjacency, one item that one member runs in order, as the launching
     thread ran them (on the CPU their loops are serial: backend.serialize_light_loops). The same
@@ -266,16 +265,14 @@ def _set_up_phases(team: ti.template(), p: ti.i32, member: ti.i32, members: ti.i
     lo, hi, j = tm.next_chunk(team, p, n, member, members, 0)
     while lo < hi:
         for q in range(lo, hi):
-            prepare_row(b.rows, b.contacts, b.bodies, q, shares=False)
-            match_contact(b.history, b.contacts, b.rows, f[MATCH_DISTANCE], f[WARM_FACTOR], q)
+            prepare_point(b, q, f[MATCH_DISTANCE], f[WARM_FACTOR], False)
         tm.finish(team, p, hi - lo)
         lo, hi, j = tm.next_chunk(team, p, n, member, members, j)
     tm.wait(team, p, n)
     p += 1
     lo, hi, _ = tm.next_chunk(team, p, 1, member, members, 0)
     if lo < hi:
-        list_carry_rows(b.rows, b.contacts)
-        build_adjacency_loops(b.blocks, b.contacts, b.bodies, b.rows, kind, mode, f[RELAXATION])
+        order_blocks(b, b.blocks, kind, mode, f[RELAXATION])
         tm.finish(team, p, 1)
     tm.wait(team, p, 1)
     return p + 1
